@@ -1,0 +1,3 @@
+"""Artwork input and ink masks."""
+
+from __future__ import annotations

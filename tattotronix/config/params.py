@@ -1,0 +1,218 @@
+"""Compose ``conf/`` into ``params.yaml``, and refuse to run on a stale one.
+
+DVC composes ``conf/`` only in ``dvc exp run``, never in ``dvc repro`` (anchors section 4,
+pitfall 1). So ``params.yaml`` can silently fall behind an edit under ``conf/``. We close
+that gap from both sides:
+
+* the ``config`` stage depends on ``conf/`` and runs first; under ``dvc repro`` it
+  recomposes ``conf/`` and stops, naming the keys that differ, when ``params.yaml`` is
+  stale (``dvc exp run`` recomposes it itself, so there it has nothing to do);
+* every stage run by DVC makes the same check before it reads ``params.yaml``.
+
+``tattotronix-params`` (``python -m tattotronix.config.params``) rewrites ``params.yaml``;
+``--check`` only compares.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+from omegaconf import DictConfig, OmegaConf
+
+__all__ = [
+    "ConfigError",
+    "PROJECT_ROOT",
+    "StaleParamsError",
+    "compose",
+    "diff",
+    "load_params",
+    "main",
+    "params_text",
+    "stale_message",
+]
+
+PROJECT_ROOT = Path(__file__).resolve().parents[2]
+CONF_DIR = PROJECT_ROOT / "conf"
+PARAMS_FILE = "params.yaml"
+RECOMPOSE_HINT = "tattotronix-params  (or: python -m tattotronix.config.params)"
+
+
+class ConfigError(ValueError):
+    """A configuration value or key is wrong; the message says which and what is allowed."""
+
+
+class StaleParamsError(ConfigError):
+    """``params.yaml`` does not equal the composition of ``conf/``."""
+
+
+def _root_cause(exc: BaseException) -> str:
+    """The innermost message of a Hydra/OmegaConf error chain, which names the key."""
+    msgs = []
+    cur: BaseException | None = exc
+    while cur is not None:
+        text = str(cur).strip()
+        if text and text not in msgs:
+            msgs.append(text)
+        cur = cur.__cause__ or cur.__context__
+    return "\n".join(msgs)
+
+
+def compose(
+    overrides: Sequence[str] = (), conf_dir: Path = CONF_DIR, config_name: str = "config"
+) -> DictConfig:
+    """Compose ``conf/`` with Hydra override strings, validated against the schemas.
+
+    Raises:
+        ConfigError: a key is unknown or a value has the wrong type or is not allowed.
+    """
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    from tattotronix.config.schema import register
+
+    register()
+    if GlobalHydra.instance().is_initialized():
+        GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(str(Path(conf_dir).resolve()), version_base="1.3"):
+            cfg = hydra_compose(config_name=config_name, overrides=list(overrides))
+    except Exception as exc:  # Hydra wraps the OmegaConf error that names the key
+        raise ConfigError(f"bad configuration: {_root_cause(exc)}") from None
+    return cfg
+
+
+def params_text(cfg: DictConfig) -> str:
+    """The YAML DVC writes for a composed config (resolved, ``hydra`` node excluded)."""
+    plain = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True, enum_to_str=True))
+    return OmegaConf.to_yaml(plain)
+
+
+def _flatten(node: Any, prefix: str = "") -> Iterator[tuple[str, Any]]:
+    if isinstance(node, dict):
+        for k, v in node.items():
+            yield from _flatten(v, f"{prefix}.{k}" if prefix else str(k))
+    elif isinstance(node, list):
+        for i, v in enumerate(node):
+            yield from _flatten(v, f"{prefix}[{i}]")
+    else:
+        yield prefix, node
+
+
+def diff(a: Any, b: Any) -> list[tuple[str, Any, Any]]:
+    """Keys whose values differ between two plain configs: ``(key, a_value, b_value)``."""
+    fa, fb = dict(_flatten(a)), dict(_flatten(b))
+    missing = object()
+    out = []
+    for key in sorted(set(fa) | set(fb)):
+        va, vb = fa.get(key, missing), fb.get(key, missing)
+        if va != vb:
+            out.append(
+                (key, None if va is missing else va, None if vb is missing else vb)
+            )
+    return out
+
+
+def _plain(cfg: DictConfig) -> Any:
+    return OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+
+
+def stale_message(root: Path = PROJECT_ROOT) -> str | None:
+    """None when ``params.yaml`` equals the composition of ``conf/``, else a message."""
+    path = root / PARAMS_FILE
+    composed = _plain(compose(conf_dir=root / "conf"))
+    if not path.exists():
+        return f"{path} is missing. Compose it with: {RECOMPOSE_HINT}"
+    stored = _plain(OmegaConf.load(path))  # type: ignore[arg-type]
+    changes = diff(stored, composed)
+    if not changes:
+        return None
+    lines = [f"  {k}: params.yaml={a!r}  conf/={b!r}" for k, a, b in changes[:12]]
+    more = f"\n  ... and {len(changes) - 12} more" if len(changes) > 12 else ""
+    return (
+        "params.yaml is stale: it differs from the composition of conf/ in "
+        f"{len(changes)} key(s):\n" + "\n".join(lines) + more + "\n"
+        f"Recompose it with: {RECOMPOSE_HINT}\nthen run `dvc repro` again "
+        "(or use `dvc exp run`, which recomposes it itself)."
+    )
+
+
+def load_params(overrides: Sequence[str] = (), root: Path = PROJECT_ROOT) -> DictConfig:
+    """The configuration a DVC-run stage uses: ``params.yaml`` plus command-line overrides.
+
+    Under ``dvc repro`` the file is first checked against ``conf/``; under ``dvc exp run``
+    (``DVC_EXP_NAME`` set) DVC has just composed it, with the experiment's overrides.
+
+    Raises:
+        StaleParamsError: ``params.yaml`` is behind ``conf/`` under ``dvc repro``.
+    """
+    if not os.environ.get("DVC_EXP_NAME"):
+        msg = stale_message(root)
+        if msg:
+            raise StaleParamsError(msg)
+    return _compose_params(overrides, root)
+
+
+def _compose_params(overrides: Sequence[str], root: Path) -> DictConfig:
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    from tattotronix.config.schema import Config
+
+    if GlobalHydra.instance().is_initialized():
+        GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(str(root.resolve()), version_base="1.3"):
+            raw = hydra_compose(config_name=Path(PARAMS_FILE).stem, overrides=list(overrides))
+        schema = OmegaConf.structured(Config)
+        cfg = OmegaConf.merge(schema, OmegaConf.to_container(raw, resolve=True))
+    except Exception as exc:
+        raise ConfigError(f"bad configuration: {_root_cause(exc)}") from None
+    assert isinstance(cfg, DictConfig)
+    return cfg
+
+
+def write_params(root: Path = PROJECT_ROOT, overrides: Sequence[str] = ()) -> Path:
+    """Compose ``conf/`` (plus overrides) and write ``params.yaml`` atomically."""
+    path = root / PARAMS_FILE
+    text = params_text(compose(overrides, conf_dir=root / "conf"))
+    tmp = path.with_suffix(".yaml.tmp")
+    tmp.write_text(text, encoding="utf-8")
+    tmp.replace(path)
+    return path
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command line: recompose ``params.yaml`` (default) or ``--check`` it."""
+    ap = argparse.ArgumentParser(prog="tattotronix-params", description=__doc__.split("\n")[0])
+    ap.add_argument("--check", action="store_true", help="only compare; exit 1 when stale")
+    ap.add_argument("--root", type=Path, default=PROJECT_ROOT, help="project root")
+    args = ap.parse_args(argv)
+    try:
+        if args.check:
+            # Under `dvc exp run` DVC has just composed params.yaml, overrides included.
+            if os.environ.get("DVC_EXP_NAME"):
+                print("params.yaml composed by dvc exp run: nothing to check")
+                return 0
+            msg = stale_message(args.root)
+            if msg:
+                print(msg, file=sys.stderr)
+                return 1
+            print("params.yaml equals the composition of conf/")
+            return 0
+        path = write_params(args.root)
+        print(f"wrote {path}")
+        return 0
+    except ConfigError as exc:
+        print(exc, file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,257 @@
+"""Typed schemas of every Hydra config group (dataclasses registered in the ConfigStore).
+
+The YAML files under ``conf/`` hold values only; these dataclasses hold the keys and their
+types. Every group file names its schema first in its defaults list, so a typo or a bad
+value stops composition with a message that names the key (and, for enums, the allowed
+values). :func:`register` is called from the Hydra plugin in ``hydra_plugins/`` so that any
+Hydra process (a stage, a test, or DVC's own composition in ``dvc exp run``) sees them.
+
+Units: SI inside (m, kg, rad, s); millimetres only where the name says ``_mm``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import Any
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING
+
+__all__ = [
+    "ArtworkConfig",
+    "BenchConfig",
+    "BoxInertial",
+    "Config",
+    "FrameConfig",
+    "InertialConfig",
+    "JointConfig",
+    "MaskConfig",
+    "MaskMethod",
+    "MassModel",
+    "PanelConfig",
+    "PathsConfig",
+    "PenConfig",
+    "RobotConfig",
+    "ServoConfig",
+    "ServoMountConfig",
+    "Tool",
+    "ToolpathConfig",
+    "register",
+]
+
+
+class MassModel(Enum):
+    """Which inertial table the robot description uses."""
+
+    printed = "printed"
+    box = "box"
+
+
+class Tool(Enum):
+    """What is mounted on ``tool0``."""
+
+    tattoo = "tattoo"
+    none = "none"
+
+
+class MaskMethod(Enum):
+    """How an artwork becomes an ink mask."""
+
+    threshold = "threshold"
+    edges = "edges"
+
+
+@dataclass
+class JointConfig:
+    """One revolute joint: fixed origin (parent frame, m / rad), then a rotation about ``axis``."""
+
+    name: str = MISSING
+    parent: str = MISSING
+    child: str = MISSING
+    xyz: list[float] = MISSING
+    rpy: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    axis: list[float] = MISSING
+    lower: float = MISSING  # rad
+    upper: float = MISSING  # rad
+    effort: float = 20.0  # N m
+    velocity: float = 1.5  # rad/s
+
+
+@dataclass
+class FrameConfig:
+    """A frame rigidly attached to ``parent`` (no body of its own)."""
+
+    name: str = MISSING
+    parent: str = MISSING
+    xyz: list[float] = MISSING
+    rpy: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+
+@dataclass
+class InertialConfig:
+    """Mass (kg), CoM in the link frame (m) and inertia about the CoM in link axes (kg m^2).
+
+    ``inertia`` is ``[ixx, ixy, ixz, iyy, iyz, izz]``.
+    """
+
+    mass: float = MISSING
+    com: list[float] = MISSING
+    inertia: list[float] = MISSING
+
+
+@dataclass
+class BoxInertial:
+    """The ``box`` mass model for one link: a solid box of the link's bounding box.
+
+    Its ``centre`` and ``size`` (m) also size the primitive geometry used without meshes.
+    """
+
+    mass: float = MISSING
+    centre: list[float] = MISSING
+    size: list[float] = MISSING
+
+
+@dataclass
+class PenConfig:
+    """The placeholder tattoo pen on ``tool0``: a cylinder along tool0 +z (m, kg)."""
+
+    length: float = 0.045
+    radius: float = 0.003
+    mass: float = 0.020
+    barrel_length: float = 0.037  # visual barrel; the rest is the tip cone
+
+
+@dataclass
+class PanelConfig:
+    """The work panel in the arm frame (m). Visual only: the needle may enter it."""
+
+    centre: list[float] = field(default_factory=lambda: [0.21, 0.0, 0.0025])
+    size: list[float] = field(default_factory=lambda: [0.20, 0.14, 0.005])
+
+
+@dataclass
+class BenchConfig:
+    """The bench under the arm (m); its top is the arm frame's z = 0."""
+
+    size: list[float] = field(default_factory=lambda: [0.70, 0.50, 0.75])
+
+
+@dataclass
+class ServoConfig:
+    """A catalogue hobby servo: mass (kg), body box (m), dead band (us)."""
+
+    mass: float = MISSING
+    size: list[float] = MISSING
+    deadband_us: float = MISSING
+
+
+@dataclass
+class ServoMountConfig:
+    """Where a servo sits: on ``link``, centred on joint ``at`` (or ``tool`` axis)."""
+
+    link: str = MISSING
+    servo: str = MISSING
+    at: str = MISSING  # a joint name, or "tool" for the tool servo on the tool axis
+    count: int = 1
+
+
+@dataclass
+class RobotConfig:
+    """The one robot description: URDF, MJCF and every loader are generated from it."""
+
+    name: str = "tattotronix"
+    base_link: str = "base_link"
+    joints: list[JointConfig] = MISSING
+    tool0: FrameConfig = MISSING
+    tcp: FrameConfig = MISSING
+    tool: Tool = Tool.tattoo
+    pen: PenConfig = field(default_factory=PenConfig)
+    mass_model: MassModel = MassModel.printed
+    printed: dict[str, InertialConfig] = MISSING
+    box: dict[str, BoxInertial] = MISSING
+    cad_dir: str | None = None
+    mesh_scale: float = 0.01  # the CAD meshes are in centimetres
+    gravity: float = 9.80665  # m/s^2
+    bench: BenchConfig = field(default_factory=BenchConfig)
+    panel: PanelConfig = field(default_factory=PanelConfig)
+    # mass integration (the ``mass`` stage)
+    pla_density: float = 1240.0  # kg/m^3, solid PLA
+    printed_fraction: float = 0.35  # share of solid: 20 % infill, perimeters dominate
+    servos: dict[str, ServoConfig] = MISSING
+    servo_mounts: list[ServoMountConfig] = MISSING
+
+
+@dataclass
+class ArtworkConfig:
+    """Which artwork to draw. ``source`` null means the built-in emblem."""
+
+    source: str | None = None
+    name: str | None = None  # defaults to the file's stem
+    max_pixels: int = 40_000_000  # refuse larger images (decompression bombs)
+
+
+@dataclass
+class MaskConfig:
+    """Artwork to ink mask."""
+
+    width_mm: float = 150.0
+    res_mm: float = 0.25
+    method: MaskMethod = MaskMethod.threshold
+    min_region_mm2: float = 4.0
+    edge_sigma_px: float = 2.0
+    edge_k: float = 1.0
+
+
+@dataclass
+class ToolpathConfig:
+    """Mask to ordered needle path (mm in the panel plane)."""
+
+    pitch_mm: float = 1.2
+    step_mm: float = 0.15
+    clearance_mm: float = 8.0
+    plunge_mm: float = 1.5
+    approach_mm: float = 4.0
+    min_loop_px: int = 8
+    feed_mark_mm_s: float = 6.0
+    feed_travel_mm_s: float = 60.0
+    lift_s: float = 0.0  # extra fixed cost per needle entry in the ordering objective
+    outlines_first: bool = True
+    panel_origin: list[float] = field(default_factory=lambda: [0.21, 0.0, 0.005])  # m
+
+
+@dataclass
+class PathsConfig:
+    """Where outputs go. Relative paths are taken from the project root."""
+
+    data: str = "data"
+
+
+@dataclass
+class Config:
+    """The composed configuration (``params.yaml``)."""
+
+    paths: PathsConfig = field(default_factory=PathsConfig)
+    robot: RobotConfig = MISSING
+    artwork: ArtworkConfig = field(default_factory=ArtworkConfig)
+    mask: MaskConfig = field(default_factory=MaskConfig)
+    toolpath: ToolpathConfig = field(default_factory=ToolpathConfig)
+
+
+SCHEMAS: dict[str, Any] = {
+    "robot": RobotConfig,
+    "artwork": ArtworkConfig,
+    "mask": MaskConfig,
+    "toolpath": ToolpathConfig,
+}
+
+
+def register() -> None:
+    """Register the schemas in Hydra's ConfigStore (idempotent).
+
+    Each group's schema is stored as ``<group>/_schema``; the root as ``_config_schema``.
+    """
+    cs = ConfigStore.instance()
+    for group, node in SCHEMAS.items():
+        cs.store(group=group, name="_schema", node=node)
+    cs.store(name="_config_schema", node=Config)
