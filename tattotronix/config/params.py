@@ -192,19 +192,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Command line: recompose ``params.yaml`` (default) or ``--check`` it."""
     ap = argparse.ArgumentParser(prog="tattotronix-params", description=__doc__.split("\n")[0])
     ap.add_argument("--check", action="store_true", help="only compare; exit 1 when stale")
-    ap.add_argument("--root", type=Path, default=PROJECT_ROOT, help="project root")
+    ap.add_argument("--stamp", type=Path, default=None,
+                    help="with --check: write this file when fresh (the DVC gate)")
+    ap.add_argument("--root", type=Path, default=Path.cwd(),
+                    help="project root (default: the current directory, as DVC runs it)")
     args = ap.parse_args(argv)
     try:
         if args.check:
             # Under `dvc exp run` DVC has just composed params.yaml, overrides included.
             if os.environ.get("DVC_EXP_NAME"):
                 print("params.yaml composed by dvc exp run: nothing to check")
-                return 0
-            msg = stale_message(args.root)
+                msg = None
+            else:
+                msg = stale_message(args.root)
             if msg:
                 print(msg, file=sys.stderr)
                 return 1
             print("params.yaml equals the composition of conf/")
+            if args.stamp:
+                args.stamp.parent.mkdir(parents=True, exist_ok=True)
+                args.stamp.write_text("params.yaml equals the composition of conf/\n")
             return 0
         path = write_params(args.root)
         print(f"wrote {path}")

@@ -1,0 +1,33 @@
+"""Stage `robot`: generate data/robot/tattotronix.{urdf,xml} and the zero-pose report.
+
+    python stages/robot.py [robot.mass_model=box] [robot.tool=none] [robot.cad_dir=DIR]
+"""
+
+from __future__ import annotations
+
+import logging
+
+from omegaconf import DictConfig
+
+from tattotronix.robot.description import build_description
+from tattotronix.robot.report import generate
+from tattotronix.stage import Outputs, run_stage
+
+log = logging.getLogger("tattotronix.robot")
+
+
+def main(cfg: DictConfig, out: Outputs) -> None:
+    """Build the description, generate both model files, and report on them."""
+    desc = build_description(cfg.robot)
+    models = generate(desc)
+    out.write_text(out.path("robot", f"{desc.name}.urdf"), models.urdf)
+    out.write_text(out.path("robot", f"{desc.name}.xml"), models.mjcf)
+    out.write_json(out.path("metrics", "robot.json"), models.report)
+    r = models.report
+    log.info("tcp at zero pose %s mm, highest point %.2f mm, moving mass %.4f kg (%s, %s)",
+             r["tcp_zero_mm"], r["highest_point_mm"], r["moving_mass_kg"], r["mass_model"],
+             r["geometry"])
+
+
+if __name__ == "__main__":
+    run_stage("robot", main)

@@ -1,0 +1,3 @@
+"""The robot: one description, generated URDF/MJCF, loaders, mass properties."""
+
+from __future__ import annotations

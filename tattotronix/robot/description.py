@@ -1,0 +1,316 @@
+"""The immutable robot description, built once from ``cfg.robot``.
+
+Everything downstream (URDF, MJCF, the Pinocchio, MuJoCo and PyBullet loaders, the mass
+stage, reports) reads this one object; nothing re-types the joint table.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from omegaconf import DictConfig, OmegaConf
+
+from tattotronix.stage import TattotronixError
+
+__all__ = [
+    "Frame",
+    "Geometry",
+    "Inertial",
+    "Joint",
+    "RobotDescription",
+    "build_description",
+    "rpy_matrix",
+]
+
+PEN_LINK = "tattoo_pen_link"
+
+
+def rpy_matrix(rpy: NDArray[np.float64] | list[float]) -> NDArray[np.float64]:
+    """URDF roll-pitch-yaw (fixed axes X, Y, Z) to a rotation matrix: Rz(y) Ry(p) Rx(r)."""
+    r, p, y = (float(a) for a in rpy)
+    cr, sr, cp, sp, cy, sy = np.cos(r), np.sin(r), np.cos(p), np.sin(p), np.cos(y), np.sin(y)
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+@dataclass(frozen=True)
+class Inertial:
+    """Mass (kg), CoM in the link frame (m), inertia about the CoM in link axes (kg m^2)."""
+
+    mass: float
+    com: NDArray[np.float64]
+    inertia: NDArray[np.float64]  # (3, 3)
+
+    @staticmethod
+    def from_list(mass: float, com: Any, six: Any) -> Inertial:
+        """From ``[ixx, ixy, ixz, iyy, iyz, izz]``."""
+        ixx, ixy, ixz, iyy, iyz, izz = (float(v) for v in six)
+        tensor = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
+        return Inertial(float(mass), np.asarray(com, dtype=float), tensor)
+
+    @staticmethod
+    def solid_box(mass: float, centre: Any, size: Any) -> Inertial:
+        """A solid box: m (b^2 + c^2) / 12 about each axis."""
+        a, b, c = (float(v) for v in size)
+        diag = mass / 12.0 * np.array([b * b + c * c, a * a + c * c, a * a + b * b])
+        return Inertial(float(mass), np.asarray(centre, dtype=float), np.diag(diag))
+
+    @staticmethod
+    def solid_cylinder_z(mass: float, centre: Any, radius: float, length: float) -> Inertial:
+        """A solid cylinder along z: m (3 r^2 + h^2) / 12 across, m r^2 / 2 along."""
+        across = mass * (3 * radius**2 + length**2) / 12.0
+        along = mass * radius**2 / 2.0
+        return Inertial(float(mass), np.asarray(centre, dtype=float), np.diag([across, across, along]))
+
+    @property
+    def six(self) -> tuple[float, float, float, float, float, float]:
+        """``(ixx, ixy, ixz, iyy, iyz, izz)``."""
+        t = self.inertia
+        return tuple(float(v) for v in (t[0, 0], t[0, 1], t[0, 2], t[1, 1], t[1, 2], t[2, 2]))  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """What a link looks like and collides as: a mesh file (scaled) or a primitive."""
+
+    kind: str  # "mesh" | "box" | "cylinder"
+    origin: NDArray[np.float64]  # position in the link frame, m
+    size: NDArray[np.float64]  # box (3,) full size; cylinder (radius, length); mesh: scale (3,)
+    mesh: Path | None = None
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A revolute joint: fixed origin in the parent frame, then rotation about ``axis``."""
+
+    name: str
+    parent: str
+    child: str
+    xyz: NDArray[np.float64]
+    rpy: NDArray[np.float64]
+    axis: NDArray[np.float64]
+    lower: float
+    upper: float
+    effort: float
+    velocity: float
+
+
+@dataclass(frozen=True)
+class Frame:
+    """A frame rigidly attached to ``parent`` (URDF: a link behind a fixed joint)."""
+
+    name: str
+    parent: str
+    xyz: NDArray[np.float64]
+    rpy: NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class RobotDescription:
+    """The arm, its tool and its world, in SI units.
+
+    Attributes:
+        name: model name.
+        links: body links in tree order, base first (``base_link`` ... ``tool_mount_link``,
+            then ``tattoo_pen_link`` when the tattoo tool is mounted).
+        joints: the revolute joints, base outward.
+        frames: massless frames (``tool0``, ``tattoo_tcp``) and the fixed pen link's mount.
+        inertials: per body link.
+        geometry: per body link (visual and collision).
+        gravity: magnitude, m/s^2, along -z.
+        mass_model: ``printed`` or ``box``.
+        tool: ``tattoo`` or ``none``.
+        bench_size, panel_centre, panel_size: world geometry, m (bench top at z = 0).
+    """
+
+    name: str
+    links: tuple[str, ...]
+    joints: tuple[Joint, ...]
+    frames: tuple[Frame, ...]
+    inertials: dict[str, Inertial]
+    geometry: dict[str, tuple[Geometry, ...]]
+    gravity: float
+    mass_model: str
+    tool: str
+    bench_size: NDArray[np.float64]
+    panel_centre: NDArray[np.float64]
+    panel_size: NDArray[np.float64]
+    cad_dir: Path | None
+
+    @property
+    def joint_names(self) -> tuple[str, ...]:
+        """``joint_1`` ... ``joint_5``."""
+        return tuple(j.name for j in self.joints)
+
+    @property
+    def lower(self) -> NDArray[np.float64]:
+        """Lower joint limits, rad."""
+        return np.array([j.lower for j in self.joints])
+
+    @property
+    def upper(self) -> NDArray[np.float64]:
+        """Upper joint limits, rad."""
+        return np.array([j.upper for j in self.joints])
+
+    @property
+    def frame_names(self) -> tuple[str, ...]:
+        """Every named frame: the links, then the massless frames."""
+        return self.links + tuple(f.name for f in self.frames if f.name not in self.links)
+
+    @property
+    def tip_frame(self) -> str:
+        """The frame paths are planned for: ``tattoo_tcp``, or ``tool0`` without a tool."""
+        return "tattoo_tcp" if self.tool == "tattoo" else "tool0"
+
+    def parent_of(self, name: str) -> str | None:
+        """The parent link or frame of a link or frame (None for the base)."""
+        for j in self.joints:
+            if j.child == name:
+                return j.parent
+        for f in self.frames:
+            if f.name == name:
+                return f.parent
+        return None
+
+    def moving_mass(self) -> float:
+        """Mass of everything from the first joint's child outward, kg."""
+        return sum(i.mass for link, i in self.inertials.items() if link != self.links[0])
+
+    def total_mass(self) -> float:
+        """Mass of every body link, kg."""
+        return sum(i.mass for i in self.inertials.values())
+
+
+def _vec(values: Any, n: int, where: str) -> NDArray[np.float64]:
+    arr = np.asarray(list(values), dtype=float)
+    if arr.shape != (n,) or not np.all(np.isfinite(arr)):
+        raise TattotronixError(f"{where} must be {n} finite numbers, got {list(values)}")
+    return arr
+
+
+def _mesh_files(cad_dir: Path, links: tuple[str, ...]) -> dict[str, Path]:
+    if not cad_dir.is_dir():
+        raise TattotronixError(
+            f"robot.cad_dir={cad_dir} is not a directory: give the folder holding one "
+            "<link>.stl per link, or robot.cad_dir=null for primitive geometry"
+        )
+    files = {link: cad_dir / f"{link}.stl" for link in links}
+    missing = [p.name for p in files.values() if not p.is_file()]
+    if missing:
+        raise TattotronixError(
+            f"robot.cad_dir={cad_dir} is missing mesh(es): {', '.join(missing)} "
+            "(one <link>.stl per link, in centimetres)"
+        )
+    return files
+
+
+def build_description(robot: DictConfig | dict[str, Any]) -> RobotDescription:
+    """Validate ``cfg.robot`` and build the description.
+
+    Raises:
+        TattotronixError: a joint limit with lower >= upper, a broken chain, an unknown
+            mass model or tool, a missing inertial, or a ``cad_dir`` missing a mesh.
+    """
+    r: Any = OmegaConf.create(robot) if isinstance(robot, dict) else robot
+    mass_model = str(getattr(r.mass_model, "value", r.mass_model))
+    tool = str(getattr(r.tool, "value", r.tool))
+    if mass_model not in ("printed", "box"):
+        raise TattotronixError(
+            f"robot.mass_model={mass_model!r} is not allowed: choose printed or box"
+        )
+    if tool not in ("tattoo", "none"):
+        raise TattotronixError(f"robot.tool={tool!r} is not allowed: choose tattoo or none")
+
+    joints: list[Joint] = []
+    links = [str(r.base_link)]
+    for i, jc in enumerate(r.joints):
+        where = f"robot.joints[{i}] ({jc.name})"
+        if str(jc.parent) != links[-1]:
+            raise TattotronixError(
+                f"{where}: parent {jc.parent!r} should be {links[-1]!r} (a serial chain)"
+            )
+        lower, upper = float(jc.lower), float(jc.upper)
+        if not lower < upper:
+            raise TattotronixError(
+                f"{where}: joint limit lower={lower} must be below upper={upper} (rad)"
+            )
+        axis = _vec(jc.axis, 3, f"{where}.axis")
+        if np.linalg.norm(axis) == 0:
+            raise TattotronixError(f"{where}.axis is zero")
+        joints.append(
+            Joint(str(jc.name), str(jc.parent), str(jc.child), _vec(jc.xyz, 3, f"{where}.xyz"),
+                  _vec(jc.rpy, 3, f"{where}.rpy"), axis / np.linalg.norm(axis), lower, upper,
+                  float(jc.effort), float(jc.velocity))
+        )
+        links.append(str(jc.child))
+    arm_links = tuple(links)
+
+    frames = [
+        Frame(str(r.tool0.name), str(r.tool0.parent), _vec(r.tool0.xyz, 3, "robot.tool0.xyz"),
+              _vec(r.tool0.rpy, 3, "robot.tool0.rpy"))
+    ]
+    if frames[0].parent not in arm_links:
+        raise TattotronixError(f"robot.tool0.parent={frames[0].parent!r} is not a link")
+
+    # Inertials: the chosen table for the arm links, plus the pen.
+    inertials: dict[str, Inertial] = {}
+    table = r.printed if mass_model == "printed" else r.box
+    for link in arm_links:
+        if link not in table:
+            raise TattotronixError(f"robot.{mass_model} has no inertial for link {link!r}")
+        e = table[link]
+        if mass_model == "printed":
+            inertials[link] = Inertial.from_list(e.mass, e.com, e.inertia)
+        else:
+            inertials[link] = Inertial.solid_box(e.mass, e.centre, e.size)
+        if not inertials[link].mass > 0:
+            raise TattotronixError(f"robot.{mass_model}.{link}.mass must be positive")
+
+    cad_dir = Path(str(r.cad_dir)).expanduser() if r.cad_dir else None
+    geometry: dict[str, tuple[Geometry, ...]] = {}
+    if cad_dir is not None:
+        scale = np.full(3, float(r.mesh_scale))
+        for link, path in _mesh_files(cad_dir, arm_links).items():
+            geometry[link] = (Geometry("mesh", np.zeros(3), scale, path.resolve()),)
+    else:
+        for link in arm_links:
+            b = r.box[link]
+            geometry[link] = (Geometry("box", _vec(b.centre, 3, f"robot.box.{link}.centre"),
+                                       _vec(b.size, 3, f"robot.box.{link}.size")),)
+
+    body_links = list(arm_links)
+    if tool == "tattoo":
+        pen = r.pen
+        length, radius = float(pen.length), float(pen.radius)
+        frames.append(Frame(PEN_LINK, frames[0].name, np.zeros(3), np.zeros(3)))
+        frames.append(Frame(str(r.tcp.name), PEN_LINK, _vec(r.tcp.xyz, 3, "robot.tcp.xyz"),
+                            _vec(r.tcp.rpy, 3, "robot.tcp.rpy")))
+        centre = np.array([0.0, 0.0, length / 2])
+        inertials[PEN_LINK] = Inertial.solid_cylinder_z(float(pen.mass), centre, radius, length)
+        geometry[PEN_LINK] = (Geometry("cylinder", centre, np.array([radius, length])),)
+        body_links.append(PEN_LINK)
+
+    return RobotDescription(
+        name=str(r.name),
+        links=tuple(body_links),
+        joints=tuple(joints),
+        frames=tuple(frames),
+        inertials=inertials,
+        geometry=geometry,
+        gravity=float(r.gravity),
+        mass_model=mass_model,
+        tool=tool,
+        bench_size=_vec(r.bench.size, 3, "robot.bench.size"),
+        panel_centre=_vec(r.panel.centre, 3, "robot.panel.centre"),
+        panel_size=_vec(r.panel.size, 3, "robot.panel.size"),
+        cad_dir=cad_dir,
+    )

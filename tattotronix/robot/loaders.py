@@ -1,0 +1,177 @@
+"""Load the generated models in Pinocchio, MuJoCo and PyBullet behind one small interface.
+
+Each loader answers the same three questions at a joint configuration ``q`` (rad):
+where every named frame is (m, arm frame), the joint-space mass matrix (kg m^2) and the
+gravity torques (N m). Tests hold the three to each other; the plants build on them.
+Gravity is the description's value (9.80665 m/s^2) in every loader.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["ArmModel", "MujocoArm", "PinocchioArm", "PybulletArm", "load_pinocchio"]
+
+Vec = NDArray[np.float64]
+
+
+class ArmModel(Protocol):
+    """What every loader can tell about the arm."""
+
+    joint_names: tuple[str, ...]
+
+    def frames(self, q: Vec) -> dict[str, Vec]:
+        """Position of every named frame (m)."""
+        ...
+
+    def mass_matrix(self, q: Vec) -> Vec:
+        """Joint-space mass matrix (n, n), kg m^2."""
+        ...
+
+    def gravity(self, q: Vec) -> Vec:
+        """Gravity torques (n,), N m: the torque that holds the arm still at ``q``."""
+        ...
+
+
+def load_pinocchio(urdf: Path, gravity: float):  # -> pin.Model
+    """Pinocchio model from the URDF, fixed base, with the description's gravity."""
+    import pinocchio as pin
+
+    model = pin.buildModelFromUrdf(str(urdf))
+    model.gravity.linear = np.array([0.0, 0.0, -gravity])
+    return model
+
+
+class PinocchioArm:
+    """Pinocchio: FK for every frame, CRBA and RNEA gravity."""
+
+    def __init__(self, urdf: Path, gravity: float):
+        import pinocchio as pin
+
+        self._pin = pin
+        self.model = load_pinocchio(urdf, gravity)
+        self.data = self.model.createData()
+        self.joint_names = tuple(self.model.names[1:])
+        # Every frame once: links appear as BODY frames, fixed-joint children too.
+        seen: dict[str, int] = {}
+        for i, f in enumerate(self.model.frames):
+            if f.type == pin.FrameType.BODY and f.name not in seen:
+                seen[f.name] = i
+        self._frame_ids = seen
+
+    def frames(self, q: Vec) -> dict[str, Vec]:
+        pin = self._pin
+        pin.framesForwardKinematics(self.model, self.data, np.asarray(q, dtype=float))
+        return {n: self.data.oMf[i].translation.copy() for n, i in self._frame_ids.items()}
+
+    def mass_matrix(self, q: Vec) -> Vec:
+        m = self._pin.crba(self.model, self.data, np.asarray(q, dtype=float))
+        return np.triu(m) + np.triu(m, 1).T
+
+    def gravity(self, q: Vec) -> Vec:
+        return self._pin.computeGeneralizedGravity(self.model, self.data, np.asarray(q, float)).copy()
+
+
+class MujocoArm:
+    """MuJoCo: bodies and sites from the MJCF; ``mj_fullM`` and the bias force at rest."""
+
+    def __init__(self, mjcf: Path):
+        import mujoco
+
+        self._mj = mujoco
+        self.model = mujoco.MjModel.from_xml_path(str(mjcf))
+        self.data = mujoco.MjData(self.model)
+        m = self.model
+        self.joint_names = tuple(
+            mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, i) for i in range(m.njnt)
+        )
+        self._bodies = {mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_BODY, i): i
+                        for i in range(1, m.nbody)}
+        self._sites = {mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SITE, i): i
+                       for i in range(m.nsite)}
+
+    def _set(self, q: Vec) -> None:
+        self.data.qpos[:] = q
+        self.data.qvel[:] = 0.0
+        self._mj.mj_forward(self.model, self.data)
+
+    def frames(self, q: Vec) -> dict[str, Vec]:
+        self._set(q)
+        out = {n: self.data.xpos[i].copy() for n, i in self._bodies.items()}
+        out.update({n: self.data.site_xpos[i].copy() for n, i in self._sites.items()})
+        return out
+
+    def mass_matrix(self, q: Vec) -> Vec:
+        self._set(q)
+        full = np.zeros((self.model.nv, self.model.nv))
+        self._mj.mj_fullM(self.model, self.data, full)
+        return full
+
+    def gravity(self, q: Vec) -> Vec:
+        self._set(q)
+        return self.data.qfrc_bias.copy()  # at zero velocity: gravity only
+
+
+class PybulletArm:
+    """PyBullet (DIRECT): the URDF with its own inertias (``URDF_USE_INERTIA_FROM_FILE``)."""
+
+    def __init__(self, urdf: Path, gravity: float):
+        import pybullet as p
+
+        self._p = p
+        self.client = p.connect(p.DIRECT)
+        p.setGravity(0, 0, -gravity, physicsClientId=self.client)
+        self.body = p.loadURDF(str(urdf), useFixedBase=True,
+                               flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=self.client)
+        self._links: dict[str, int] = {
+            p.getBodyInfo(self.body, physicsClientId=self.client)[0].decode(): -1
+        }
+        self._movable: list[int] = []
+        names = []
+        for i in range(p.getNumJoints(self.body, physicsClientId=self.client)):
+            info = p.getJointInfo(self.body, i, physicsClientId=self.client)
+            self._links[info[12].decode()] = i
+            if info[2] == p.JOINT_REVOLUTE:
+                self._movable.append(i)
+                names.append(info[1].decode())
+        self.joint_names = tuple(names)
+
+    def close(self) -> None:
+        """Disconnect the physics client."""
+        if self._p.isConnected(self.client):
+            self._p.disconnect(self.client)
+
+    def _set(self, q: Vec) -> None:
+        for idx, v in zip(self._movable, q, strict=True):
+            self._p.resetJointState(self.body, idx, float(v), 0.0, physicsClientId=self.client)
+
+    def frames(self, q: Vec) -> dict[str, Vec]:
+        p = self._p
+        self._set(q)
+        out: dict[str, Vec] = {}
+        for name, idx in self._links.items():
+            if idx < 0:  # the base reports its inertial frame: step back to the link frame
+                pos, orn = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
+                local = p.getDynamicsInfo(self.body, -1, physicsClientId=self.client)[3:5]
+                inv = p.invertTransform(*local)
+                out[name] = np.asarray(p.multiplyTransforms(pos, orn, *inv)[0], dtype=float)
+            else:
+                st = p.getLinkState(self.body, idx, computeForwardKinematics=True,
+                                    physicsClientId=self.client)
+                out[name] = np.asarray(st[4], dtype=float)  # URDF link frame
+        return out
+
+    def mass_matrix(self, q: Vec) -> Vec:
+        m = self._p.calculateMassMatrix(self.body, [float(v) for v in q],
+                                        physicsClientId=self.client)
+        return np.asarray(m, dtype=float)
+
+    def gravity(self, q: Vec) -> Vec:
+        zero = [0.0] * len(q)
+        tau = self._p.calculateInverseDynamics(self.body, [float(v) for v in q], zero, zero,
+                                               physicsClientId=self.client)
+        return np.asarray(tau, dtype=float)

@@ -1,0 +1,128 @@
+"""The robot stage's work: generate URDF and MJCF, load them everywhere, report zero pose."""
+
+from __future__ import annotations
+
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tattotronix.robot.description import Geometry, RobotDescription
+from tattotronix.robot.loaders import MujocoArm, PinocchioArm, PybulletArm
+from tattotronix.robot.mjcf import to_mjcf
+from tattotronix.robot.urdf import to_urdf
+
+__all__ = ["RobotModels", "effective_inertia", "generate", "geometry_points", "zero_pose_report"]
+
+
+@dataclass(frozen=True)
+class RobotModels:
+    """The generated model texts and the report on them."""
+
+    urdf: str
+    mjcf: str
+    report: dict[str, Any]
+
+
+def effective_inertia(mass_matrix: NDArray[np.float64]) -> NDArray[np.float64]:
+    """J_eff,i = 1 / (M^-1)_ii: the inertia joint i sees with the others free (kg m^2)."""
+    return 1.0 / np.diag(np.linalg.inv(mass_matrix))
+
+
+def geometry_points(g: Geometry) -> NDArray[np.float64]:
+    """Points of a link's geometry in its link frame (m): mesh vertices or primitive corners."""
+    if g.kind == "mesh":
+        from tattotronix.robot.stl import read_stl
+
+        assert g.mesh is not None
+        return read_stl(g.mesh).reshape(-1, 3) * g.size + g.origin
+    if g.kind == "box":
+        half = np.asarray(g.size) / 2
+        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
+        return corners * half + g.origin
+    radius, length = g.size
+    ang = np.linspace(0, 2 * np.pi, 32, endpoint=False)
+    ring = np.stack([radius * np.cos(ang), radius * np.sin(ang), np.zeros_like(ang)], axis=1)
+    return np.concatenate([ring - [0, 0, length / 2], ring + [0, 0, length / 2]]) + g.origin
+
+
+def _agreement(d: RobotDescription, pin: PinocchioArm, others: dict[str, Any],
+               poses: int, seed: int) -> dict[str, dict[str, float]]:
+    """Worst disagreement with Pinocchio over random poses within the limits."""
+    rng = np.random.default_rng(seed)
+    out = {name: {"frame_pos_m": 0.0, "mass_matrix_rel": 0.0, "gravity_rel": 0.0}
+           for name in others}
+    for _ in range(poses):
+        q = rng.uniform(d.lower, d.upper)
+        f0, m0, g0 = pin.frames(q), pin.mass_matrix(q), pin.gravity(q)
+        for name, arm in others.items():
+            f = arm.frames(q)
+            w = out[name]
+            w["frame_pos_m"] = max(w["frame_pos_m"], max(
+                float(np.abs(f0[k] - f[k]).max()) for k in d.frame_names))
+            w["mass_matrix_rel"] = max(w["mass_matrix_rel"], float(
+                np.abs(arm.mass_matrix(q) - m0).max() / np.abs(m0).max()))
+            w["gravity_rel"] = max(w["gravity_rel"], float(
+                np.abs(arm.gravity(q) - g0).max() / max(np.abs(g0).max(), 1e-12)))
+    return out
+
+
+def zero_pose_report(d: RobotDescription, urdf: Path, mjcf: Path,
+                     poses: int = 20, seed: int = 0) -> dict[str, Any]:
+    """Zero-pose figures, mass totals, and the loaders' agreement (Pinocchio as reference).
+
+    Lengths in the report are mm (``_mm``), masses kg, torques N m, inertias kg m^2.
+    """
+    pin = PinocchioArm(urdf, d.gravity)
+    q0 = np.zeros(len(d.joints))
+    import pinocchio
+
+    pinocchio.framesForwardKinematics(pin.model, pin.data, q0)
+    frames = pin.frames(q0)
+    highest = -np.inf
+    for link in d.links:
+        placement = pin.data.oMf[pin.model.getFrameId(link)]
+        for g in d.geometry[link]:
+            pts = geometry_points(g) @ placement.rotation.T + placement.translation
+            highest = max(highest, float(pts[:, 2].max()))
+    m0 = pin.mass_matrix(q0)
+    bullet = PybulletArm(urdf, d.gravity)
+    try:
+        agreement = _agreement(d, pin, {"mujoco": MujocoArm(mjcf), "pybullet": bullet},
+                               poses, seed)
+    finally:
+        bullet.close()
+    mm = {name: [round(float(v) * 1000, 4) for v in frames[name]] for name in d.frame_names}
+    return {
+        "frames_zero_mm": mm,
+        "tcp_zero_mm": mm[d.tip_frame],
+        "tool0_zero_mm": mm["tool0"],
+        "wrist_axis_mm": mm[d.joints[3].child][2],
+        "highest_point_mm": round(highest * 1000, 3),
+        "geometry": "mesh" if d.cad_dir else "primitive",
+        "mass_model": d.mass_model,
+        "tool": d.tool,
+        "gravity_m_s2": d.gravity,
+        "arm_mass_kg": round(sum(d.inertials[k].mass for k in d.links if k != "tattoo_pen_link"), 6),
+        "moving_mass_kg": round(d.moving_mass(), 6),
+        "gravity_zero_nm": [round(float(v), 7) for v in pin.gravity(q0)],
+        "j_eff_zero": [float(f"{v:.6e}") for v in effective_inertia(m0)],
+        "m_diag_zero": [float(f"{v:.6e}") for v in np.diag(m0)],
+        "joints": {j.name: {"lower": j.lower, "upper": j.upper, "effort_nm": j.effort,
+                            "velocity_rad_s": j.velocity} for j in d.joints},
+        "loader_agreement": {"poses": poses, "seed": seed, **agreement},
+    }
+
+
+def generate(d: RobotDescription) -> RobotModels:
+    """URDF and MJCF texts, checked by loading them in all three engines."""
+    urdf, mjcf = to_urdf(d), to_mjcf(d)
+    with tempfile.TemporaryDirectory(prefix="tattotronix-robot-") as tmp:
+        u, m = Path(tmp, "robot.urdf"), Path(tmp, "robot.xml")
+        u.write_text(urdf)
+        m.write_text(mjcf)
+        report = zero_pose_report(d, u, m)
+    return RobotModels(urdf, mjcf, report)
