@@ -53,7 +53,8 @@ def main(argv: list[str] | None = None) -> int:
         mod = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(mod)
         for name, value, unit, note in mod.bench(args.repeat):
-            print(f"{f.stem.removeprefix('bench_') + ': ' + name:<48} {value:>14.6g}  {unit}  {note}")
+            label = f"{f.stem.removeprefix('bench_')}: {name}"
+            print(f"{label:<48} {value:>14.6g}  {unit}  {note}")
     return 0
 
 

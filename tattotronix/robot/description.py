@@ -69,7 +69,8 @@ class Inertial:
         """A solid cylinder along z: m (3 r^2 + h^2) / 12 across, m r^2 / 2 along."""
         across = mass * (3 * radius**2 + length**2) / 12.0
         along = mass * radius**2 / 2.0
-        return Inertial(float(mass), np.asarray(centre, dtype=float), np.diag([across, across, along]))
+        tensor = np.diag([across, across, along])
+        return Inertial(float(mass), np.asarray(centre, dtype=float), tensor)
 
     @property
     def six(self) -> tuple[float, float, float, float, float, float]:
@@ -184,6 +185,10 @@ class RobotDescription:
     def moving_mass(self) -> float:
         """Mass of everything from the first joint's child outward, kg."""
         return sum(i.mass for link, i in self.inertials.items() if link != self.links[0])
+
+    def arm_mass(self) -> float:
+        """Mass of the arm's own links (the tool excluded), kg."""
+        return sum(i.mass for link, i in self.inertials.items() if link != PEN_LINK)
 
     def total_mass(self) -> float:
         """Mass of every body link, kg."""

@@ -73,7 +73,8 @@ class PinocchioArm:
         return np.triu(m) + np.triu(m, 1).T
 
     def gravity(self, q: Vec) -> Vec:
-        return self._pin.computeGeneralizedGravity(self.model, self.data, np.asarray(q, float)).copy()
+        q = np.asarray(q, dtype=float)
+        return self._pin.computeGeneralizedGravity(self.model, self.data, q).copy()
 
 
 class MujocoArm:

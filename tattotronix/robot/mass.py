@@ -122,11 +122,13 @@ class MassProperties:
         }
 
     @classmethod
-    def from_inertial(cls, mass: float, com: Sequence[float], inertia6: Sequence[float]):
+    def from_inertial(
+        cls, mass: float, com: Sequence[float], inertia6: Sequence[float]
+    ) -> MassProperties:
         """Build from the config layout (``inertia`` = ixx, ixy, ixz, iyy, iyz, izz)."""
         xx, xy, xz, yy, yz, zz = (float(v) for v in inertia6)
         tensor = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-        return cls(mass=float(mass), com=list(com), inertia=tensor)
+        return cls(mass=float(mass), com=np.asarray(com, dtype=np.float64), inertia=tensor)
 
 
 def parallel_axis(mass: float, d: Sequence[float] | np.ndarray) -> np.ndarray:
@@ -147,11 +149,11 @@ def combine(parts: Iterable[MassProperties]) -> MassProperties:
     parts = list(parts)
     if not parts:
         raise TattotronixError("cannot combine an empty list of mass properties")
-    mass = sum(p.mass for p in parts)
+    mass = float(sum(p.mass for p in parts))
     if not mass > 0:
         raise TattotronixError(f"combined mass must be positive, got {mass} kg")
-    com = sum(p.mass * p.com for p in parts) / mass
-    inertia = sum(p.inertia_about(com) for p in parts)
+    com = np.sum([p.mass * p.com for p in parts], axis=0) / mass
+    inertia = np.sum([p.inertia_about(com) for p in parts], axis=0)
     meshes = [p for p in parts if p.volume_m3 is not None]
     mesh = meshes[0] if len(meshes) == 1 else None
     return MassProperties(
@@ -282,12 +284,19 @@ def box_properties(
     """
     sx, sy, sz = (float(v) for v in size)
     diag = mass / 12.0 * np.array([sy**2 + sz**2, sx**2 + sz**2, sx**2 + sy**2])
-    return MassProperties(mass=mass, com=list(centre), inertia=np.diag(diag), parts=(name,))
+    return MassProperties(
+        mass=mass, com=np.asarray(centre, dtype=np.float64), inertia=np.diag(diag), parts=(name,)
+    )
 
 
 def point_mass(mass: float, position: Sequence[float], name: str = "point") -> MassProperties:
     """A point mass (kg) at ``position`` (m): zero inertia about itself."""
-    return MassProperties(mass=mass, com=list(position), inertia=np.zeros((3, 3)), parts=(name,))
+    return MassProperties(
+        mass=mass,
+        com=np.asarray(position, dtype=np.float64),
+        inertia=np.zeros((3, 3)),
+        parts=(name,),
+    )
 
 
 def shell_density(robot_cfg: Any) -> float:

@@ -112,7 +112,8 @@ def to_mjcf(d: RobotDescription) -> str:
         + (f"  <asset>\n{assets}  </asset>\n" if assets else "")
         + "  <worldbody>\n"
         '    <light name="key" pos="0.3 -0.5 1.0" dir="-0.3 0.5 -1" directional="true"/>\n'
-        f'    <geom name="ground" type="plane" size="2 2 0.01" pos="0 0 {-float(d.bench_size[2])!r}" '
+        f'    <geom name="ground" type="plane" size="2 2 0.01" '
+        f'pos="0 0 {-float(d.bench_size[2])!r}" '
         f'{WORLD_CONTACT} rgba="0.6 0.6 0.6 1"/>\n'
         f'    <geom name="bench" type="box" size="{fmt(bench_half)}" '
         f'pos="0 0 {-float(bench_half[2])!r}" {WORLD_CONTACT} rgba="0.55 0.42 0.3 1"/>\n'

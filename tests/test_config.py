@@ -1,0 +1,138 @@
+"""Configuration: params.yaml is the composition of conf/, never silently stale."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tattotronix.config.params import (
+    ConfigError,
+    compose,
+    main,
+    params_text,
+    stale_message,
+    write_params,
+)
+
+from .conftest import PYTHON, ROOT
+
+ENV = {k: v for k, v in os.environ.items() if not k.startswith("DVC_")}
+
+
+def _project_copy(tmp: Path) -> Path:
+    """conf/, params.yaml and stages/ in a scratch folder (the code stays installed)."""
+    for sub in ("conf", "stages"):
+        shutil.copytree(ROOT / sub, tmp / sub)
+    shutil.copy(ROOT / "params.yaml", tmp / "params.yaml")
+    return tmp
+
+
+def test_params_yaml_equals_the_composition_of_conf() -> None:
+    assert stale_message(ROOT) is None
+    assert (ROOT / "params.yaml").read_text() == params_text(compose(conf_dir=ROOT / "conf"))
+
+
+@pytest.mark.parametrize("overrides", [[], ["robot.mass_model=box", "mask.width_mm=120"]])
+def test_dvc_composition_equals_ours(tmp_path: Path, overrides: list[str]) -> None:
+    from dvc.utils.hydra import compose_and_dump
+
+    out = tmp_path / "params.yaml"
+    compose_and_dump(out, str(ROOT / "conf"), None, "config", str(ROOT), overrides)
+    assert yaml.safe_load(out.read_text()) == yaml.safe_load(params_text(compose(overrides)))
+
+
+def test_dvc_hydra_composition_is_enabled() -> None:
+    text = (ROOT / ".dvc" / "config").read_text()
+    assert "[hydra]" in text and "enabled = True" in text
+
+
+@pytest.mark.parametrize(
+    ("override", "words"),
+    [
+        ("robot.mass_model=prnited", ["prnited", "printed, box", "robot.mass_model"]),
+        ("robot.mas_model=box", ["mas_model"]),
+        ("mask.method=foo", ["foo", "threshold, edges"]),
+        ("mask.width_mm=wide", ["mask.width_mm", "wide"]),
+    ],
+)
+def test_bad_key_or_value_names_the_key(override: str, words: list[str]) -> None:
+    with pytest.raises(ConfigError) as err:
+        compose([override])
+    assert all(w in str(err.value) for w in words), str(err.value)
+
+
+def test_stale_params_are_detected_and_recomposed(tmp_path: Path) -> None:
+    root = _project_copy(tmp_path)
+    robot = root / "conf" / "robot" / "tattotronix.yaml"
+    robot.write_text(robot.read_text().replace("mass_model: printed", "mass_model: box"))
+    msg = stale_message(root)
+    assert msg and "robot.mass_model" in msg and "'printed'" in msg and "'box'" in msg
+    assert "tattotronix-params" in msg
+    assert main(["--check", "--root", str(root)]) == 1
+    write_params(root)
+    assert stale_message(root) is None
+    assert main(["--check", "--root", str(root)]) == 0
+
+
+def test_stage_under_dvc_refuses_stale_params(tmp_path: Path) -> None:
+    root = _project_copy(tmp_path)
+    env = {**ENV, "DVC_STAGE": "robot", "DVC_ROOT": str(root)}
+    run = subprocess.run([PYTHON, "stages/robot.py"], cwd=root, env=env,
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert (root / "data" / "robot" / "tattotronix.urdf").exists()
+    toolpath = root / "conf" / "toolpath" / "default.yaml"
+    toolpath.write_text(toolpath.read_text().replace("pitch_mm: 1.2", "pitch_mm: 0.5"))
+    run = subprocess.run([PYTHON, "stages/robot.py"], cwd=root, env=env,
+                         capture_output=True, text=True)
+    assert run.returncode == 2
+    assert "params.yaml is stale" in run.stderr and "toolpath.pitch_mm" in run.stderr
+    # under `dvc exp run` DVC has just composed params.yaml with the experiment's overrides
+    run = subprocess.run([PYTHON, "stages/robot.py"], cwd=root,
+                         env={**env, "DVC_EXP_NAME": "exp"}, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+
+
+def test_stage_overrides_paths_data_and_leaves_no_hydra_folders(tmp_path: Path) -> None:
+    run = subprocess.run(
+        [PYTHON, str(ROOT / "stages" / "robot.py"), "paths.data=out", "robot.tool=none"],
+        cwd=tmp_path, env=ENV, capture_output=True, text=True,
+    )
+    assert run.returncode == 0, run.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["out"]
+    report = yaml.safe_load((tmp_path / "out" / "metrics" / "robot.json").read_text())
+    assert report["tool"] == "none"
+
+
+def test_stage_bad_value_exits_with_the_allowed_values(tmp_path: Path) -> None:
+    run = subprocess.run(
+        [PYTHON, str(ROOT / "stages" / "robot.py"), "paths.data=out", "robot.mass_model=prnited"],
+        cwd=tmp_path, env=ENV, capture_output=True, text=True,
+    )
+    assert run.returncode != 0
+    assert "expected one of [printed, box]" in run.stdout + run.stderr
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.slow
+def test_dvc_repro_on_a_clean_clone(tmp_path: Path) -> None:
+    """`dvc repro` on a fresh clone runs the stages; a second `dvc repro` does nothing."""
+    clone = tmp_path / "clone"
+    subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True)
+    dvc = [PYTHON, "-m", "dvc"]
+    first = subprocess.run([*dvc, "repro"], cwd=clone, env=ENV, capture_output=True, text=True)
+    assert first.returncode == 0, first.stdout + first.stderr
+    # cached outputs are rebuilt; stages whose outputs are committed metrics are current
+    assert "Running stage 'robot'" in first.stdout
+    for stage in ("config", "mass"):
+        assert f"Stage '{stage}'" in first.stdout or f"stage '{stage}'" in first.stdout
+    second = subprocess.run([*dvc, "repro"], cwd=clone, env=ENV, capture_output=True, text=True)
+    assert second.returncode == 0
+    assert "Running stage" not in second.stdout
+    status = subprocess.run([*dvc, "status"], cwd=clone, env=ENV, capture_output=True, text=True)
+    assert "up to date" in status.stdout

@@ -1,0 +1,39 @@
+"""README numbers equal the metrics files they come from."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import pytest
+
+from .conftest import ROOT
+
+README = (ROOT / "README.md").read_text()
+
+
+def _row(label: str) -> list[float]:
+    m = re.search(rf"^\| {re.escape(label)} \| (.+?) \|$", README, re.M)
+    assert m, f"README has no row {label!r}"
+    return [float(v) for v in re.findall(r"-?\d+(?:\.\d+)?(?:e-?\d+)?", m.group(1))]
+
+
+@pytest.fixture(scope="module")
+def robot() -> dict:
+    return json.loads((ROOT / "data" / "metrics" / "robot.json").read_text())
+
+
+def test_readme_zero_pose_figures_equal_the_robot_metrics(robot: dict) -> None:
+    assert _row("`tattoo_tcp`") == robot["tcp_zero_mm"]
+    assert _row("`tool0`") == robot["tool0_zero_mm"]
+    assert _row("wrist axis height") == [robot["wrist_axis_mm"]]
+    assert _row("gravity torques") == robot["gravity_zero_nm"]
+    assert _row("arm mass / moving mass (with the pen)") == [
+        robot["arm_mass_kg"], robot["moving_mass_kg"]]
+
+
+def test_readme_opens_with_the_two_fresh_machine_commands() -> None:
+    blocks = re.findall(r"```bash\n(.+?)\n```", README, re.S)
+    assert "pip install -e" in blocks[0] and "dvc repro" in blocks[0]
+    assert "pytest" in blocks[1]
+    assert "python -m pytest" in (ROOT / ".ci" / "run").read_text()
