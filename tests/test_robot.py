@@ -167,7 +167,7 @@ def test_cad_dir_missing_a_mesh_is_refused(tmp_path: Path) -> None:
         (tmp_path / f"{link}.stl").write_bytes(b"")
     with pytest.raises(TattotronixError, match="tool_mount_link.stl"):
         build_description(compose([f"robot.cad_dir={tmp_path}"]).robot)
-    with pytest.raises(TattotronixError, match="not a directory"):
+    with pytest.raises(TattotronixError, match="not found"):
         build_description(compose([f"robot.cad_dir={tmp_path / 'nope'}"]).robot)
 
 

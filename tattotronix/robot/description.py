@@ -14,6 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 from omegaconf import DictConfig, OmegaConf
 
+from tattotronix.robot.stl import mesh_dir_files, resolve_cad_dir
 from tattotronix.stage import TattotronixError
 
 __all__ = [
@@ -202,22 +203,6 @@ def _vec(values: Any, n: int, where: str) -> NDArray[np.float64]:
     return arr
 
 
-def _mesh_files(cad_dir: Path, links: tuple[str, ...]) -> dict[str, Path]:
-    if not cad_dir.is_dir():
-        raise TattotronixError(
-            f"robot.cad_dir={cad_dir} is not a directory: give the folder holding one "
-            "<link>.stl per link, or robot.cad_dir=null for primitive geometry"
-        )
-    files = {link: cad_dir / f"{link}.stl" for link in links}
-    missing = [p.name for p in files.values() if not p.is_file()]
-    if missing:
-        raise TattotronixError(
-            f"robot.cad_dir={cad_dir} is missing mesh(es): {', '.join(missing)} "
-            "(one <link>.stl per link, in centimetres)"
-        )
-    return files
-
-
 def build_description(robot: DictConfig | dict[str, Any]) -> RobotDescription:
     """Validate ``cfg.robot`` and build the description.
 
@@ -280,12 +265,12 @@ def build_description(robot: DictConfig | dict[str, Any]) -> RobotDescription:
         if not inertials[link].mass > 0:
             raise TattotronixError(f"robot.{mass_model}.{link}.mass must be positive")
 
-    cad_dir = Path(str(r.cad_dir)).expanduser() if r.cad_dir else None
+    cad_dir = resolve_cad_dir(str(r.cad_dir)) if r.cad_dir else None
     geometry: dict[str, tuple[Geometry, ...]] = {}
     if cad_dir is not None:
         scale = np.full(3, float(r.mesh_scale))
-        for link, path in _mesh_files(cad_dir, arm_links).items():
-            geometry[link] = (Geometry("mesh", np.zeros(3), scale, path.resolve()),)
+        for link, path in mesh_dir_files(cad_dir, arm_links).items():
+            geometry[link] = (Geometry("mesh", np.zeros(3), scale, path),)
     else:
         for link in arm_links:
             b = r.box[link]

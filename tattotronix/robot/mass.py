@@ -33,7 +33,8 @@ from typing import Any
 
 import numpy as np
 
-from tattotronix.robot.stl import mesh_dir_files, read_stl
+from tattotronix.config.params import PROJECT_ROOT
+from tattotronix.robot.stl import mesh_dir_files, read_stl, resolve_cad_dir
 from tattotronix.stage import TattotronixError
 
 __all__ = [
@@ -65,7 +66,6 @@ __all__ = [
 #: Second-moment covariance of the canonical tetrahedron (0, e1, e2, e3).
 C0 = np.array([[2.0, 1.0, 1.0], [1.0, 2.0, 1.0], [1.0, 1.0, 2.0]]) / 120.0
 
-_PROJECT_ROOT = Path(__file__).resolve().parents[2]
 #: The generated inertial table, relative to the project root.
 INERTIALS_FILE = Path("conf/robot/inertials/printed.yaml")
 
@@ -396,12 +396,6 @@ def link_properties(
     return props
 
 
-def resolve_cad_dir(cad_dir: str | Path) -> Path:
-    """A CAD directory; a relative one is taken from the project root."""
-    path = Path(cad_dir).expanduser()
-    return path if path.is_absolute() else _PROJECT_ROOT / path
-
-
 def _mesh_files(robot_cfg: Any, cad_dir: str | Path | None = None) -> dict[str, Path]:
     cad = cad_dir if cad_dir is not None else robot_cfg.cad_dir
     if cad is None:
@@ -601,7 +595,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     t = report["totals"]
     print(f"arm {t['arm_kg']:.5f} kg, moving (incl. pen) {t['moving_kg']:.5f} kg")
     if args.write:
-        target = _PROJECT_ROOT / INERTIALS_FILE
+        target = PROJECT_ROOT / INERTIALS_FILE
         tmp = target.with_name(f".{target.name}.tmp")
         tmp.write_text(text, encoding="utf-8")
         tmp.replace(target)

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tattotronix.config.params import PROJECT_ROOT
 from tattotronix.stage import TattotronixError
 
 __all__ = ["HEADER_BYTES", "RECORD_DTYPE", "mesh_dir_files", "read_stl", "write_stl"]
@@ -109,6 +110,12 @@ def write_stl(path: str | Path, triangles: np.ndarray, header: bytes = b"") -> P
     path = Path(path)
     path.write_bytes(head + np.uint32(len(tri)).astype("<u4").tobytes() + rec.tobytes())
     return path
+
+
+def resolve_cad_dir(cad_dir: str | Path) -> Path:
+    """A CAD directory; a relative one is taken from the project root (beside ``conf/``)."""
+    path = Path(cad_dir).expanduser()
+    return (path if path.is_absolute() else PROJECT_ROOT / path).resolve()
 
 
 def mesh_dir_files(cad_dir: str | Path, links: Iterable[str]) -> dict[str, Path]:
