@@ -201,17 +201,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.check:
             # Under `dvc exp run` DVC has just composed params.yaml, overrides included.
             if os.environ.get("DVC_EXP_NAME"):
-                print("params.yaml composed by dvc exp run: nothing to check")
-                msg = None
+                msg, ok = None, "params.yaml was just composed by dvc exp run"
             else:
-                msg = stale_message(args.root)
+                msg, ok = stale_message(args.root), "params.yaml equals the composition of conf/"
             if msg:
                 print(msg, file=sys.stderr)
                 return 1
-            print("params.yaml equals the composition of conf/")
+            print(ok)
             if args.stamp:
                 args.stamp.parent.mkdir(parents=True, exist_ok=True)
-                args.stamp.write_text("params.yaml equals the composition of conf/\n")
+                args.stamp.write_text("params.yaml is fresh\n")
             return 0
         path = write_params(args.root)
         print(f"wrote {path}")

@@ -1,0 +1,59 @@
+"""Stage ``artwork``: a PNG, JPG or SVG file (or a built-in) to a grey raster on the mask grid.
+
+Writes ``data/artwork/<name>.png`` (8-bit grey, ``mask.width_mm`` wide at ``mask.res_mm``
+per pixel) and ``data/metrics/artwork/<name>.json``. ``artwork.source`` picks the file
+(null: the built-in emblem; ``portrait``: the built-in photograph); ``artwork.name``
+names the outputs and defaults to the file's stem.
+"""
+
+from __future__ import annotations
+
+import logging
+
+from omegaconf import DictConfig
+from PIL import Image
+
+from tattotronix.art.artwork import artwork_name, load_artwork
+from tattotronix.art.mask import otsu_ink
+from tattotronix.stage import Outputs, run_stage
+
+log = logging.getLogger("tattotronix.stages.artwork")
+
+MM_PER_INCH = 25.4
+
+
+def main(cfg: DictConfig, out: Outputs) -> None:
+    """Load the artwork, write its raster and metrics."""
+    name = artwork_name(cfg.artwork)
+    art = load_artwork(
+        cfg.artwork.source, cfg.mask.width_mm, cfg.mask.res_mm, cfg.artwork.max_pixels, name
+    )
+    ink, _, _ = otsu_ink(art.grey)
+    width_mm, height_mm = art.size_mm
+    dpi = MM_PER_INCH / art.res_mm
+
+    png = out.path("artwork", f"{name}.png")
+    Image.fromarray(art.as_uint8(), mode="L").save(
+        out.tmp_path(png), format="PNG", dpi=(dpi, dpi)
+    )
+    out.write_json(
+        out.path("metrics", "artwork", f"{name}.json"),
+        {
+            "name": name,
+            "source": art.source,
+            "kind": art.kind,
+            "original_px": list(art.original_px),
+            "render_px": list(art.render_px) if art.render_px else None,
+            "raster_px": [art.shape[1], art.shape[0]],
+            "res_mm": art.res_mm,
+            "width_mm": width_mm,
+            "height_mm": height_mm,
+            "ink_fraction": float(ink.mean()),
+        },
+    )
+    log.info("artwork %s: %s (%.1f x %.1f mm, ink ~%.1f %%)", name, png, width_mm,
+             height_mm, 100.0 * ink.mean())
+
+
+if __name__ == "__main__":
+    run_stage("artwork", main)

@@ -1,0 +1,60 @@
+"""Stage ``mask``: the artwork raster to an ink mask on the panel grid.
+
+Reads ``data/artwork/<name>.png`` (run the ``artwork`` stage first) and writes
+``data/mask/<name>.npz`` (:class:`~tattotronix.art.grid.InkMask`), a preview
+``data/mask/<name>.png`` (ink black on white) and ``data/metrics/mask/<name>.json``.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from omegaconf import DictConfig
+from PIL import Image
+
+from tattotronix.art.artwork import artwork_name
+from tattotronix.art.mask import make_mask
+from tattotronix.stage import Outputs, TattotronixError, run_stage
+
+log = logging.getLogger("tattotronix.stages.mask")
+
+
+def main(cfg: DictConfig, out: Outputs) -> None:
+    """Threshold (or edge-detect) the artwork raster; write the mask, preview and metrics."""
+    name = artwork_name(cfg.artwork)
+    src = out.require(out.path("artwork", f"{name}.png"), "artwork")
+    try:
+        with Image.open(src) as im:
+            grey = np.asarray(im.convert("L"), dtype=np.float64)
+    except OSError as exc:
+        raise TattotronixError(
+            f"cannot read {src} ({exc}); re-run the 'artwork' stage"
+        ) from None
+    want_w = max(round(cfg.mask.width_mm / cfg.mask.res_mm), 1)
+    if grey.shape[1] != want_w:
+        raise TattotronixError(
+            f"{src} is {grey.shape[1]} px wide, but mask.width_mm={cfg.mask.width_mm:g} at "
+            f"mask.res_mm={cfg.mask.res_mm:g} needs {want_w} px: re-run the 'artwork' stage "
+            "with the same mask settings"
+        )
+    mask, stats = make_mask(
+        grey,
+        cfg.mask.res_mm,
+        cfg.mask.method,
+        cfg.mask.min_region_mm2,
+        edge_sigma_px=cfg.mask.edge_sigma_px,
+        edge_k=cfg.mask.edge_k,
+    )
+    npz = out.path("mask", f"{name}.npz")
+    mask.save(out.tmp_path(npz))
+    preview = out.path("mask", f"{name}.png")
+    Image.fromarray(np.where(mask.ink, 0, 255).astype(np.uint8), mode="L").save(
+        out.tmp_path(preview), format="PNG"
+    )
+    out.write_json(out.path("metrics", "mask", f"{name}.json"), {"name": name, **stats.as_dict()})
+    log.info("mask %s: %s", name, npz)
+
+
+if __name__ == "__main__":
+    run_stage("mask", main)

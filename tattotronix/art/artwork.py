@@ -1,0 +1,476 @@
+"""Artwork input: a PNG, JPG or SVG file (or a built-in) to a grey raster on the mask grid.
+
+The raster is what the ``mask`` stage thresholds. It is ``width_mm`` wide at ``res_mm``
+per pixel, with the source's aspect ratio (reference/original.md section 2.1):
+
+* Raster files (PNG, JPG) go through Pillow. Transparency is composited onto opaque
+  white, then the image is converted to 8-bit grey. The grid is ``out_w =
+  round(width_mm / res_mm)``, ``out_h = round(h_px * (width_mm / w_px) / res_mm)``.
+  Enlarging is bilinear, as the original; shrinking averages areas (``cv2.INTER_AREA``),
+  so a thin line in a large photo is thinned, not skipped.
+* SVG goes through resvg (``resvg_py``), rendered at twice the mask resolution and then
+  averaged down 2 x 2, so each edge pixel is decided by four sub-pixels and small
+  counters stay open.
+
+Every way an input can be unusable ends in a one-line :class:`TattotronixError` that says
+what was wrong and what to do: a missing or unsupported file, a corrupt or truncated
+image, a file that is not an image, an SVG that does not parse, a decompression bomb
+(checked on the header or the declared SVG size, before decoding), and an image with no
+drawable ink (one flat tone).
+"""
+
+from __future__ import annotations
+
+import io
+import logging
+import math
+import re
+import warnings
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+from PIL import Image, ImageOps
+
+from tattotronix.art.mask import NoInkError
+from tattotronix.stage import TattotronixError
+
+__all__ = [
+    "ASSETS_DIR",
+    "Artwork",
+    "BUILTINS",
+    "DEFAULT_ARTWORK",
+    "SUPPORTED_SUFFIXES",
+    "artwork_name",
+    "builtin_path",
+    "grid_shape",
+    "load_artwork",
+    "resolve_source",
+    "svg_intrinsic_size",
+]
+
+log = logging.getLogger(__name__)
+
+ASSETS_DIR = Path(__file__).resolve().parent / "assets"
+"""The built-in artworks (see ``assets/LICENSES.md``)."""
+
+BUILTINS: dict[str, str] = {"emblem": "emblem.svg", "portrait": "portrait.jpg"}
+"""Built-in artwork name -> file under :data:`ASSETS_DIR`."""
+
+DEFAULT_ARTWORK = "emblem"
+"""What ``artwork.source: null`` draws."""
+
+RASTER_SUFFIXES = (".png", ".jpg", ".jpeg")
+SVG_SUFFIXES = (".svg",)
+SUPPORTED_SUFFIXES = RASTER_SUFFIXES + SVG_SUFFIXES
+
+SVG_OVERSAMPLE = 2
+"""Vector art is rendered at this multiple of the mask resolution, then averaged down."""
+
+CSS_DPI = 96.0
+"""CSS pixels per inch: how SVG lengths in mm, pt, in map to pixels."""
+
+FLAT_TONE_LEVELS = 8.0
+"""A raster whose grey levels span less than this (0..255 scale) has no drawable ink."""
+
+_SVG_UNITS_PX = {
+    "": 1.0,
+    "px": 1.0,
+    "in": CSS_DPI,
+    "cm": CSS_DPI / 2.54,
+    "mm": CSS_DPI / 25.4,
+    "pt": CSS_DPI / 72.0,
+    "pc": CSS_DPI / 6.0,
+}
+_SVG_LENGTH = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([a-z%]*)\s*$")
+_SVG_DEFAULT_PX = 100.0  # resvg's size for an SVG with neither width/height nor viewBox
+
+
+@dataclass(frozen=True)
+class Artwork:
+    """An artwork on the mask grid.
+
+    Attributes:
+        grey: (H, W) float64 grey levels, 0 black .. 255 white. Row 0 is the top.
+        res_mm: grid pitch, mm per pixel.
+        name: names the outputs (``data/artwork/<name>.png``).
+        source: what was read: ``builtin:<name>`` for a built-in, else the file's path
+            (relative to the working directory when it lies under it).
+        kind: ``"png"``, ``"jpeg"`` or ``"svg"``.
+        original_px: (width, height) of the source in its own pixels (for SVG, its
+            intrinsic size in CSS pixels, rounded).
+        render_px: (width, height) of the intermediate SVG rendering, or None.
+    """
+
+    grey: NDArray[np.float64]
+    res_mm: float
+    name: str
+    source: str
+    kind: str
+    original_px: tuple[int, int]
+    render_px: tuple[int, int] | None = None
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """(H, W) of the grid in pixels."""
+        h, w = self.grey.shape
+        return h, w
+
+    @property
+    def size_mm(self) -> tuple[float, float]:
+        """(width, height) of the drawing in mm."""
+        h, w = self.grey.shape
+        return w * self.res_mm, h * self.res_mm
+
+    def as_uint8(self) -> NDArray[np.uint8]:
+        """The grey raster rounded to 8 bits (what ``data/artwork/<name>.png`` holds)."""
+        return np.clip(np.rint(self.grey), 0, 255).astype(np.uint8)
+
+
+# ----------------------------------------------------------------------------- naming
+
+
+def builtin_path(name: str) -> Path:
+    """The file of a built-in artwork.
+
+    Args:
+        name: one of :data:`BUILTINS` (``"emblem"``, ``"portrait"``).
+
+    Raises:
+        TattotronixError: ``name`` is not a built-in.
+    """
+    try:
+        return ASSETS_DIR / BUILTINS[name]
+    except KeyError:
+        raise TattotronixError(
+            f"no built-in artwork named '{name}': built-ins are {', '.join(BUILTINS)}"
+        ) from None
+
+
+def resolve_source(source: str | Path | None) -> Path:
+    """The file an ``artwork.source`` value means.
+
+    ``None`` is the built-in emblem. A path that exists is used as is. A bare built-in
+    name (``emblem``, ``portrait``) that is not an existing file means that built-in.
+
+    Raises:
+        TattotronixError: the file does not exist.
+    """
+    if source is None or str(source).strip() == "":
+        return builtin_path(DEFAULT_ARTWORK)
+    path = Path(source).expanduser()
+    if path.exists():
+        return path.resolve()
+    if str(source) in BUILTINS:
+        return builtin_path(str(source))
+    raise TattotronixError(
+        f"artwork file not found: {source} (give a PNG, JPG or SVG path, "
+        f"or a built-in: {', '.join(BUILTINS)})"
+    )
+
+
+def artwork_name(cfg_artwork: Any) -> str:
+    """The name of an artwork's outputs: ``name``, else the source's stem, else ``emblem``.
+
+    Args:
+        cfg_artwork: the ``artwork`` config group (anything with ``source`` and ``name``).
+
+    Raises:
+        TattotronixError: the name would not be a plain file name.
+    """
+    name = getattr(cfg_artwork, "name", None)
+    source = getattr(cfg_artwork, "source", None)
+    if name is None or str(name).strip() == "":
+        name = DEFAULT_ARTWORK if source is None or str(source).strip() == "" else Path(
+            str(source)
+        ).stem
+    name = str(name).strip()
+    if not name or name.startswith(".") or "/" in name or "\\" in name:
+        raise TattotronixError(
+            f"bad artwork name '{name}': it names output files, so use a plain name "
+            "such as artwork.name=my_logo"
+        )
+    return name
+
+
+# ----------------------------------------------------------------------------- grid
+
+
+def grid_shape(size_px: tuple[float, float], width_mm: float, res_mm: float) -> tuple[int, int]:
+    """(H, W) of the mask grid for a source of ``size_px`` = (width, height) pixels.
+
+    ``W = round(width_mm / res_mm)``, ``H = round(h * (width_mm / w) / res_mm)``, each
+    at least 1.
+
+    Raises:
+        TattotronixError: a non-positive width, resolution or source size.
+    """
+    w_px, h_px = size_px
+    if not (width_mm > 0 and res_mm > 0 and math.isfinite(width_mm) and math.isfinite(res_mm)):
+        raise TattotronixError(
+            f"bad drawing size: mask.width_mm={width_mm}, mask.res_mm={res_mm} "
+            "(both must be positive)"
+        )
+    if not (w_px > 0 and h_px > 0 and math.isfinite(w_px) and math.isfinite(h_px)):
+        raise TattotronixError(f"the artwork has no area ({w_px} x {h_px} px)")
+    out_w = max(round(width_mm / res_mm), 1)
+    out_h = max(round(h_px * (width_mm / w_px) / res_mm), 1)
+    return out_h, out_w
+
+
+def _check_pixels(what: str, w: int, h: int, max_pixels: int, fix: str) -> None:
+    if w * h > max_pixels:
+        raise TattotronixError(
+            f"{what} is {w} x {h} = {w * h} px, more than artwork.max_pixels={max_pixels} "
+            f"(a decompression bomb?); {fix}"
+        )
+
+
+def _source_label(path: Path) -> str:
+    """``builtin:<name>`` for a built-in file, else the path (cwd-relative if under it)."""
+    for name, file in BUILTINS.items():
+        if path == ASSETS_DIR / file:
+            return f"builtin:{name}"
+    try:
+        return str(path.relative_to(Path.cwd()))
+    except ValueError:
+        return str(path)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return text or type(exc).__name__
+
+
+# ----------------------------------------------------------------------------- decoding
+
+
+def _to_grey(im: Image.Image) -> NDArray[np.float64]:
+    """Grey levels 0..255 of a Pillow image, transparency composited onto white."""
+    if im.mode in ("RGBA", "LA", "PA", "La", "RGBa", "P") or "transparency" in im.info:
+        rgba = im.convert("RGBA")
+        white = Image.new("RGBA", rgba.size, (255, 255, 255, 255))
+        im = Image.alpha_composite(white, rgba)
+    if im.mode.startswith("I;16") or im.mode == "I":
+        g = np.asarray(im, dtype=np.float64)
+        return np.clip(g / 257.0 if g.max() > 255 else g, 0, 255)
+    if im.mode == "F":
+        return np.clip(np.asarray(im, dtype=np.float64), 0, 255)
+    return np.asarray(im.convert("L"), dtype=np.float64)
+
+
+def _open_raster(
+    path: Path | io.BytesIO, label: str, max_pixels: int
+) -> tuple[Image.Image, str]:
+    """Open and decode a PNG/JPG, its size checked on the header first; with its format."""
+    saved = Image.MAX_IMAGE_PIXELS
+    try:
+        # Image.open reads the header only; we check its size ourselves before decoding
+        # (with our limit and our message), so Pillow's global guard is off meanwhile.
+        Image.MAX_IMAGE_PIXELS = None
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            im: Image.Image = Image.open(path)
+            w, h = im.size
+            _check_pixels(
+                f"{label}", w, h, max_pixels,
+                "refusing to decode it: scale it down, or raise artwork.max_pixels if you "
+                "trust it",
+            )
+            im.load()
+            fmt = (im.format or "").lower()
+            im = ImageOps.exif_transpose(im) or im
+    except TattotronixError:
+        raise
+    except Image.DecompressionBombError as exc:
+        raise TattotronixError(
+            f"{label} is too large to decode safely ({_one_line(exc)}); scale it down, or "
+            "raise artwork.max_pixels if you trust it"
+        ) from None
+    except PermissionError as exc:
+        raise TattotronixError(f"cannot read {label}: {_one_line(exc)}") from None
+    except Image.UnidentifiedImageError:
+        raise TattotronixError(
+            f"{label} is not an image Pillow can read: give a PNG, JPG or SVG file"
+        ) from None
+    except (OSError, SyntaxError, ValueError, EOFError, MemoryError) as exc:
+        raise TattotronixError(
+            f"cannot decode {label}: {_one_line(exc)} (the file is corrupt or truncated; "
+            "re-export it)"
+        ) from None
+    finally:
+        Image.MAX_IMAGE_PIXELS = saved
+    return im, fmt
+
+
+def _svg_length(value: str | None) -> float | None:
+    """An absolute SVG length in CSS px, or None for missing, relative or bad values."""
+    if value is None:
+        return None
+    m = _SVG_LENGTH.match(value)
+    if not m or m.group(2) not in _SVG_UNITS_PX:
+        return None
+    v = float(m.group(1)) * _SVG_UNITS_PX[m.group(2)]
+    return v if v > 0 and math.isfinite(v) else None
+
+
+def svg_intrinsic_size(text: str, label: str = "SVG") -> tuple[float, float]:
+    """(width, height) in CSS px that an SVG declares, as resvg sizes it.
+
+    ``width``/``height`` when absolute; a missing one follows the ``viewBox`` aspect;
+    neither: the ``viewBox`` size; nothing at all: 100 x 100.
+
+    Raises:
+        TattotronixError: the text is not well-formed XML, or its root is not ``<svg>``.
+    """
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise TattotronixError(
+            f"{label} does not parse as SVG: {_one_line(exc)}; fix or re-export it"
+        ) from None
+    if root.tag.rsplit("}", 1)[-1] != "svg":
+        raise TattotronixError(
+            f"{label} is not an SVG (its root element is <{root.tag.rsplit('}', 1)[-1]}>)"
+        )
+    vb: tuple[float, float] | None = None
+    parts = re.split(r"[\s,]+", (root.get("viewBox") or "").strip())
+    if len(parts) == 4:
+        try:
+            vw, vh = float(parts[2]), float(parts[3])
+            if vw > 0 and vh > 0 and math.isfinite(vw) and math.isfinite(vh):
+                vb = (vw, vh)
+        except ValueError:
+            pass
+    w, h = _svg_length(root.get("width")), _svg_length(root.get("height"))
+    if w is not None and h is not None:
+        return w, h
+    if vb is not None:
+        if w is not None:
+            return w, w * vb[1] / vb[0]
+        if h is not None:
+            return h * vb[0] / vb[1], h
+        return vb
+    return (w or _SVG_DEFAULT_PX, h or _SVG_DEFAULT_PX)
+
+
+def _render_svg(
+    path: Path, width_mm: float, res_mm: float, max_pixels: int
+) -> tuple[NDArray[np.float64], tuple[int, int], tuple[int, int]]:
+    """Render an SVG at :data:`SVG_OVERSAMPLE` x the grid, average down to the grid."""
+    import resvg_py
+
+    label = f"artwork {path}"
+    try:
+        text = path.read_text(encoding="utf-8")
+    except UnicodeDecodeError:
+        raise TattotronixError(f"{label} is not a text SVG file (not UTF-8)") from None
+    except OSError as exc:
+        raise TattotronixError(f"cannot read {label}: {_one_line(exc)}") from None
+    size = svg_intrinsic_size(text, label)
+    out_h, out_w = grid_shape(size, width_mm, res_mm)
+    render_w = SVG_OVERSAMPLE * out_w
+    render_h = max(round(render_w * size[1] / size[0]), 1)
+    _check_pixels(
+        f"{label} rendered {width_mm:g} mm wide at {res_mm / SVG_OVERSAMPLE:g} mm/px",
+        render_w, render_h, max_pixels,
+        "check its width/height/viewBox, or raise artwork.max_pixels",
+    )
+    try:
+        png = resvg_py.svg_to_bytes(
+            svg_string=text, width=render_w, dpi=CSS_DPI, resources_dir=str(path.parent)
+        )
+    except (ValueError, RuntimeError, OSError) as exc:
+        raise TattotronixError(
+            f"{label} cannot be rendered: {_one_line(exc)}; fix or re-export the SVG"
+        ) from None
+    im, _ = _open_raster(io.BytesIO(bytes(png)), f"{label} (rendered)", max_pixels)
+    hi = _to_grey(im)
+    grey = cv2.resize(hi.astype(np.float32), (out_w, out_h), interpolation=cv2.INTER_AREA)
+    return grey.astype(np.float64), (round(size[0]), round(size[1])), (im.width, im.height)
+
+
+def _resample(grey: NDArray[np.float64], out_h: int, out_w: int) -> NDArray[np.float64]:
+    """Bilinear when enlarging, area averaging when shrinking."""
+    h, w = grey.shape
+    shrink = out_w < w or out_h < h
+    interp = cv2.INTER_AREA if shrink else cv2.INTER_LINEAR
+    out = cv2.resize(grey.astype(np.float32), (out_w, out_h), interpolation=interp)
+    return np.clip(out.astype(np.float64), 0.0, 255.0)
+
+
+# ----------------------------------------------------------------------------- entry
+
+
+def load_artwork(
+    source: str | Path | None,
+    width_mm: float,
+    res_mm: float,
+    max_pixels: int,
+    name: str | None = None,
+) -> Artwork:
+    """Read an artwork and put it on the mask grid.
+
+    Args:
+        source: a PNG, JPG or SVG path; a built-in name (``emblem``, ``portrait``); or
+            None for the built-in emblem.
+        width_mm: drawing width, mm.
+        res_mm: mask grid pitch, mm per pixel.
+        max_pixels: refuse sources (and SVG renderings, and grids) with more pixels.
+        name: output name; default the source's stem.
+
+    Returns:
+        The grey raster on the grid.
+
+    Raises:
+        TattotronixError: a missing, unsupported, corrupt, oversized or non-image file,
+            an SVG that does not parse; :class:`NoInkError` for a flat image.
+    """
+    path = resolve_source(source)
+    label = f"artwork {path}"
+    if path.is_dir():
+        raise TattotronixError(f"{label} is a directory: give a PNG, JPG or SVG file")
+    suffix = path.suffix.lower()
+    if suffix not in SUPPORTED_SUFFIXES:
+        raise TattotronixError(
+            f"unsupported artwork type '{path.suffix or '(none)'}' for {path}: "
+            "give a PNG, JPG or SVG file"
+        )
+    if suffix in SVG_SUFFIXES:
+        grey, original_px, render_px = _render_svg(path, width_mm, res_mm, max_pixels)
+        kind = "svg"
+    else:
+        im, fmt = _open_raster(path, label, max_pixels)
+        kind = fmt or suffix.lstrip(".")
+        original_px, render_px = (im.width, im.height), None
+        out_h, out_w = grid_shape(original_px, width_mm, res_mm)
+        _check_pixels(
+            f"the grid for {label} ({width_mm:g} mm at {res_mm:g} mm/px)",
+            out_w, out_h, max_pixels, "lower mask.width_mm or raise mask.res_mm",
+        )
+        grey = _resample(_to_grey(im), out_h, out_w)
+    lo, hi = float(grey.min()), float(grey.max())
+    if hi - lo < FLAT_TONE_LEVELS:
+        raise NoInkError(
+            f"{label} has no drawable ink: at {width_mm:g} mm wide and {res_mm:g} mm/px it "
+            f"is one flat tone (grey {lo:.0f}..{hi:.0f}); give an image with a drawing in it"
+        )
+    art = Artwork(
+        grey=grey,
+        res_mm=float(res_mm),
+        name=name or path.stem,
+        source=_source_label(path),
+        kind=kind,
+        original_px=original_px,
+        render_px=render_px,
+    )
+    w_mm, h_mm = art.size_mm
+    log.info(
+        "artwork %s: %s %d x %d px -> %d x %d px grid, %.1f x %.1f mm",
+        art.name, kind, *original_px, art.shape[1], art.shape[0], w_mm, h_mm,
+    )
+    return art

@@ -1,0 +1,287 @@
+"""Grey raster to ink mask (reference/original.md sections 2.1 and 2.2), through OpenCV.
+
+Two methods (:class:`~tattotronix.config.schema.MaskMethod`):
+
+* ``threshold`` (logos, lettering, flat art): Otsu's threshold; the darker side is ink
+  unless it is the majority, in which case the lighter side is (ink is the minority, so
+  artwork on a black field still yields the artwork).
+* ``edges`` (photographs): Gaussian blur (``edge_sigma_px``), Sobel along both axes,
+  gradient magnitude; ink where the magnitude exceeds ``mean + edge_k * std``.
+
+Then regions (8-connected ink) smaller than ``min_region_mm2`` are dropped, and holes
+(4-connected background components that do not reach the border) are counted.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from tattotronix.art.grid import InkMask
+from tattotronix.config.schema import MaskMethod
+from tattotronix.stage import TattotronixError
+
+__all__ = [
+    "MaskMethodError",
+    "MaskStats",
+    "NoInkError",
+    "Regions",
+    "count_holes",
+    "edge_ink",
+    "label_regions",
+    "make_mask",
+    "mask_method",
+    "otsu_ink",
+]
+
+log = logging.getLogger(__name__)
+
+ALLOWED_METHODS: tuple[str, ...] = tuple(m.value for m in MaskMethod)
+
+EDGE_MIN_MAGNITUDE = 0.5
+"""Gradient magnitudes (Sobel, grey levels per px) at or below this are never edges:
+float round-off on a flat image is not a drawing."""
+
+
+class NoInkError(TattotronixError):
+    """The artwork has nothing to draw (flat, or every region too small)."""
+
+
+class MaskMethodError(TattotronixError, ValueError):
+    """An unknown mask method; the message lists the allowed values."""
+
+
+@dataclass(frozen=True)
+class MaskStats:
+    """What the mask stage reports (``data/metrics/mask/<name>.json``).
+
+    Attributes:
+        method: ``threshold`` or ``edges``.
+        res_mm: grid pitch, mm per pixel.
+        width_mm: grid width, mm.
+        height_mm: grid height, mm.
+        width_px: grid width, px.
+        height_px: grid height, px.
+        ink_pct: share of the grid that is ink after dropping small regions, percent.
+        regions: 8-connected ink regions kept (area >= ``min_region_mm2``).
+        holes: enclosed background components (4-connected), over all regions.
+        dropped_regions: regions dropped for being smaller than ``min_region_mm2``.
+        min_region_mm2: the drop limit, mm^2.
+        smallest_region_mm2: area of the smallest kept region, mm^2.
+        largest_region_mm2: area of the largest kept region, mm^2.
+        threshold: the Otsu grey level (``threshold``; ink is one side of it) or the
+            gradient-magnitude cut (``edges``).
+        inverted: ``threshold`` only: True when the light side was taken as ink
+            (art on a dark field).
+    """
+
+    method: str
+    res_mm: float
+    width_mm: float
+    height_mm: float
+    width_px: int
+    height_px: int
+    ink_pct: float
+    regions: int
+    holes: int
+    dropped_regions: int
+    min_region_mm2: float
+    smallest_region_mm2: float
+    largest_region_mm2: float
+    threshold: float
+    inverted: bool
+
+    def as_dict(self) -> dict[str, Any]:
+        """Plain JSON-ready dict."""
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class Regions:
+    """8-connected ink regions of a mask.
+
+    Attributes:
+        labels: (H, W) int32, 0 background, 1..n the regions.
+        areas_px: (n,) pixel count of region i+1.
+    """
+
+    labels: NDArray[np.int32]
+    areas_px: NDArray[np.int64]
+
+    @property
+    def count(self) -> int:
+        """Number of regions."""
+        return int(self.areas_px.size)
+
+
+def mask_method(method: str | MaskMethod) -> MaskMethod:
+    """The :class:`MaskMethod` a config value names.
+
+    Raises:
+        MaskMethodError: ``method`` is not one of the allowed values.
+    """
+    if isinstance(method, MaskMethod):
+        return method
+    try:
+        return MaskMethod(str(method))
+    except ValueError:
+        raise MaskMethodError(
+            f"unknown mask method '{method}': allowed values are {', '.join(ALLOWED_METHODS)}"
+            " (mask.method=...)"
+        ) from None
+
+
+def _as_uint8(grey: NDArray[np.floating[Any]] | NDArray[np.uint8]) -> NDArray[np.uint8]:
+    if grey.dtype == np.uint8:
+        return np.ascontiguousarray(grey)
+    return np.clip(np.rint(grey), 0, 255).astype(np.uint8)
+
+
+def otsu_ink(grey: NDArray[Any]) -> tuple[NDArray[np.bool_], float, bool]:
+    """Otsu's threshold with the minority polarity rule.
+
+    Args:
+        grey: (H, W) grey levels 0..255 (any real dtype; rounded to 8 bits).
+
+    Returns:
+        ``(ink, t, inverted)``: the ink mask; the Otsu level t (dark is ``grey <= t``);
+        whether the light side was taken because the dark side was the majority.
+    """
+    g8 = _as_uint8(grey)
+    t, dark8 = cv2.threshold(g8, 0, 1, cv2.THRESH_BINARY_INV | cv2.THRESH_OTSU)
+    dark = dark8.astype(bool)
+    if dark.mean() <= 0.5:
+        return dark, float(t), False
+    return ~dark, float(t), True
+
+
+def edge_ink(
+    grey: NDArray[Any], sigma_px: float, k: float
+) -> tuple[NDArray[np.bool_], float]:
+    """Edges of a photograph as ink.
+
+    Args:
+        grey: (H, W) grey levels 0..255.
+        sigma_px: Gaussian blur sigma, px.
+        k: ink where the gradient magnitude exceeds ``mean + k * std``.
+
+    Returns:
+        ``(ink, cut)``: the ink mask and the magnitude cut (grey levels per px).
+    """
+    g: NDArray[Any] = np.asarray(grey, dtype=np.float32)
+    if sigma_px > 0:
+        g = np.asarray(cv2.GaussianBlur(g, (0, 0), sigmaX=sigma_px, sigmaY=sigma_px,
+                                        borderType=cv2.BORDER_REFLECT))
+    gx = cv2.Sobel(g, cv2.CV_32F, 1, 0, ksize=3, borderType=cv2.BORDER_REFLECT)
+    gy = cv2.Sobel(g, cv2.CV_32F, 0, 1, ksize=3, borderType=cv2.BORDER_REFLECT)
+    mag = cv2.magnitude(gx, gy).astype(np.float64)
+    cut = max(float(mag.mean() + k * mag.std()), EDGE_MIN_MAGNITUDE)
+    return mag > cut, cut
+
+
+def label_regions(ink: NDArray[np.bool_]) -> Regions:
+    """8-connected ink regions (OpenCV connected components)."""
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(
+        ink.astype(np.uint8), connectivity=8, ltype=cv2.CV_32S
+    )
+    return Regions(np.asarray(labels, dtype=np.int32),
+                   np.asarray(stats[1:n, cv2.CC_STAT_AREA], dtype=np.int64))
+
+
+def count_holes(ink: NDArray[np.bool_]) -> int:
+    """Enclosed background components: 4-connected, not reaching the grid border.
+
+    4-connected background is the consistent pair of 8-connected ink.
+    """
+    background = np.pad(~ink, 1, constant_values=True).astype(np.uint8)
+    n, _ = cv2.connectedComponents(background, connectivity=4)
+    # labels: 0 ink, one for the outside (holds the padded corner), the rest are holes
+    return max(int(n) - 2, 0)
+
+
+def make_mask(
+    grey: NDArray[Any],
+    res_mm: float,
+    method: str | MaskMethod = MaskMethod.threshold,
+    min_region_mm2: float = 4.0,
+    edge_sigma_px: float = 2.0,
+    edge_k: float = 1.0,
+) -> tuple[InkMask, MaskStats]:
+    """Ink mask of a grey raster on the mask grid.
+
+    Args:
+        grey: (H, W) grey levels 0 black .. 255 white; row 0 is the top.
+        res_mm: grid pitch, mm per pixel.
+        method: ``threshold`` or ``edges`` (see the module docstring).
+        min_region_mm2: drop 8-connected regions smaller than this, mm^2.
+        edge_sigma_px: ``edges``: Gaussian blur sigma, px.
+        edge_k: ``edges``: the cut is ``mean + edge_k * std`` of the gradient magnitude.
+
+    Returns:
+        The mask with its centred panel grid, and its statistics.
+
+    Raises:
+        MaskMethodError: an unknown method (the message lists the allowed ones).
+        NoInkError: nothing is left to draw.
+    """
+    kind = mask_method(method)
+    grey = np.asarray(grey)
+    if grey.ndim != 2 or grey.size == 0:
+        raise TattotronixError(f"the artwork raster must be a 2-D grey image, got {grey.shape}")
+    if not res_mm > 0:
+        raise TattotronixError(f"bad mask.res_mm={res_mm}: it must be positive")
+    inverted = False
+    if kind is MaskMethod.threshold:
+        raw, level, inverted = otsu_ink(grey)
+    else:
+        raw, level = edge_ink(grey, edge_sigma_px, edge_k)
+
+    px_mm2 = res_mm * res_mm
+    regions = label_regions(raw)
+    keep = regions.areas_px * px_mm2 >= min_region_mm2
+    h, w = grey.shape
+    if not keep.any():
+        largest = float(regions.areas_px.max() * px_mm2) if regions.count else 0.0
+        if regions.count:
+            why = (
+                f"all {regions.count} ink regions are smaller than mask.min_region_mm2="
+                f"{min_region_mm2:g} mm^2 (largest {largest:.2f} mm^2); draw it larger "
+                "(mask.width_mm) or lower mask.min_region_mm2"
+            )
+        else:
+            why = f"the {kind.value} method finds no ink in it"
+        raise NoInkError(f"the artwork has no drawable ink: {why}")
+    lut = np.concatenate([[False], keep])
+    ink = lut[regions.labels]
+    kept_px = regions.areas_px[keep]
+
+    mask = InkMask.centred(ink, res_mm)
+    width_mm, height_mm = mask.size_mm
+    stats = MaskStats(
+        method=kind.value,
+        res_mm=float(res_mm),
+        width_mm=float(width_mm),
+        height_mm=float(height_mm),
+        width_px=int(w),
+        height_px=int(h),
+        ink_pct=float(100.0 * ink.mean()),
+        regions=int(keep.sum()),
+        holes=count_holes(ink),
+        dropped_regions=int((~keep).sum()),
+        min_region_mm2=float(min_region_mm2),
+        smallest_region_mm2=float(kept_px.min() * px_mm2),
+        largest_region_mm2=float(kept_px.max() * px_mm2),
+        threshold=float(level),
+        inverted=bool(inverted),
+    )
+    log.info(
+        "mask (%s): %.1f x %.1f mm, ink %.2f %%, %d regions (%d dropped), %d holes",
+        stats.method, width_mm, height_mm, stats.ink_pct, stats.regions,
+        stats.dropped_regions, stats.holes,
+    )
+    return mask, stats
