@@ -37,3 +37,11 @@ def test_readme_opens_with_the_two_fresh_machine_commands() -> None:
     assert "pip install -e" in blocks[0] and "dvc repro" in blocks[0]
     assert "pytest" in blocks[1]
     assert "python -m pytest" in (ROOT / ".ci" / "run").read_text()
+
+
+def test_readme_toolpath_table_equals_the_toolpath_metrics() -> None:
+    m = json.loads((ROOT / "data" / "metrics" / "toolpath" / "emblem.json").read_text())
+    for label, d in (("ours", m), ("the original's rule", m["original_order"])):
+        want = [d["points"], round(d["marked_mm"]), round(d["travel_mm"]), d["entries"],
+                round(d["time_s"])]
+        assert _row(label) == want, label

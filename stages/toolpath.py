@@ -1,0 +1,66 @@
+"""Stage ``toolpath``: the ink mask to the ordered 3-D needle path.
+
+Reads ``data/mask/<name>.npz`` (run the ``mask`` stage first) and writes
+``data/toolpath/<name>.npz`` (``uvz_mm``, ``kind``, ``xyz_m``, ``stroke``, ``t_s``, and per
+drawn stroke ``stroke_kind`` and ``stroke_region``), the figure
+``data/figures/<name>/toolpath.png`` and ``data/metrics/toolpath/<name>.json`` (ours and,
+under ``original_order``, the same figures for the original's ordering rule).
+"""
+
+from __future__ import annotations
+
+import logging
+import zipfile
+
+import numpy as np
+from omegaconf import DictConfig
+
+from tattotronix.art.artwork import artwork_name
+from tattotronix.art.grid import InkMask
+from tattotronix.path.figure import toolpath_figure
+from tattotronix.path.params import ToolpathParams
+from tattotronix.path.plan import plan_toolpath
+from tattotronix.stage import Outputs, TattotronixError, run_stage
+
+log = logging.getLogger("tattotronix.stages.toolpath")
+
+
+def main(cfg: DictConfig, out: Outputs) -> None:
+    """Plan the toolpath of one artwork's mask; write the path, figure and metrics."""
+    name = artwork_name(cfg.artwork)
+    src = out.require(out.path("mask", f"{name}.npz"), "mask")
+    try:
+        mask = InkMask.load(src)
+    except (OSError, KeyError, ValueError, zipfile.BadZipFile) as exc:
+        raise TattotronixError(f"cannot read {src} ({exc}); re-run the 'mask' stage") from None
+    params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
+    tp = plan_toolpath(mask, params)
+
+    target = out.path("toolpath", f"{name}.npz")
+    seq = tp.order.sequence
+    np.savez_compressed(
+        out.tmp_path(target),
+        uvz_mm=tp.path.uvz_mm,
+        kind=tp.path.kind.astype(np.int8),
+        xyz_m=tp.xyz_m,
+        stroke=tp.path.stroke,
+        t_s=tp.t_s,
+        stroke_kind=tp.drawing.kinds[seq],
+        stroke_region=tp.drawing.region_of[seq].astype(np.int32),
+    )
+    toolpath_figure(
+        tp, params.panel_size_mm, out.tmp_path(out.path("figures", name, "toolpath.png")), name
+    )
+    out.write_json(out.path("metrics", "toolpath", f"{name}.json"),
+                   {"name": name, **tp.metrics_dict()})
+    m, o = tp.metrics, tp.original
+    log.info(
+        "toolpath %s: %d points, %.0f mm marked, %.0f mm travel, %d entries, %.1f s "
+        "(original order: %.0f mm travel, %d entries, %.1f s)",
+        name, m.points, m.marked_mm, m.travel_mm, m.entries, m.time_s, o.travel_mm, o.entries,
+        o.time_s,
+    )
+
+
+if __name__ == "__main__":
+    run_stage("toolpath", main)

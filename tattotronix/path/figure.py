@@ -1,0 +1,71 @@
+"""The toolpath figure: ink, travel moves and needle entries over the panel (matplotlib Agg)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.collections import LineCollection  # noqa: E402
+from matplotlib.patches import Rectangle  # noqa: E402
+
+from tattotronix.path.path3d import MARK, TRAVEL  # noqa: E402
+from tattotronix.path.plan import Toolpath  # noqa: E402
+
+__all__ = ["toolpath_figure"]
+
+
+def toolpath_figure(tp: Toolpath, panel_size_mm: tuple[float, float], path: Path,
+                    title: str = "") -> None:
+    """Draw the toolpath over the panel and save it as a PNG.
+
+    Ink segments (both ends marking) are solid; travel moves at clearance are thin dashed
+    lines between the retract and the next plunge; needle entries are dots.
+
+    Args:
+        tp: the planned toolpath.
+        panel_size_mm: (width, height) of the panel, mm (centred at the origin).
+        path: where to write the PNG.
+        title: first title line (e.g. the artwork's name).
+    """
+    uv, z, kind = tp.path.uvz_mm[:, :2], tp.path.uvz_mm[:, 2], tp.path.kind
+    seg = np.stack([uv[:-1], uv[1:]], axis=1)
+    ink = (kind[:-1] == MARK) & (kind[1:] == MARK)
+    horizontal = np.linalg.norm(seg[:, 1] - seg[:, 0], axis=1) > 1e-9
+    travel = ~ink & horizontal & (z[:-1] > 0) & (z[1:] > 0)
+    entry = np.flatnonzero((kind[:-1] == TRAVEL) & (kind[1:] != TRAVEL)) + 1
+    if len(kind) and kind[0] != TRAVEL:
+        entry = np.concatenate([[0], entry])
+
+    pw, ph = panel_size_mm
+    fig, ax = plt.subplots(figsize=(10, 10 * ph / pw + 0.9), dpi=150)
+    ax.add_patch(Rectangle((-pw / 2, -ph / 2), pw, ph, facecolor="#f4efe6",
+                           edgecolor="#8a7f70", lw=1.2, zorder=0))
+    ax.add_collection(LineCollection(seg[travel], colors="#d9480f", linewidths=0.5,
+                                     linestyles=(0, (3, 2)), alpha=0.8, zorder=1,
+                                     label="travel at clearance"))
+    ax.add_collection(LineCollection(seg[ink], colors="#1b1b1b", linewidths=0.6, zorder=2,
+                                     label="ink (needle down)"))
+    ax.plot(uv[entry, 0], uv[entry, 1], "o", ms=3.5, mfc="#1971c2", mec="white", mew=0.5,
+            zorder=3, label="needle entry")
+    m, o = tp.metrics, tp.original
+    ax.set_title(
+        f"{title + ': ' if title else ''}{m.points} points, {m.marked_mm:.0f} mm ink, "
+        f"{m.travel_mm:.0f} mm travel, {m.entries} entries, {m.time_s:.0f} s\n"
+        f"original order: {o.travel_mm:.0f} mm travel, {o.entries} entries, {o.time_s:.0f} s"
+        f"   |   {tp.drawing.regions} regions, {tp.drawing.holes} holes, "
+        f"{len(tp.drawing.strokes)} strokes",
+        fontsize=9,
+    )
+    ax.set_xlim(-pw / 2 - 5, pw / 2 + 5)
+    ax.set_ylim(-ph / 2 - 5, ph / 2 + 5)
+    ax.set_aspect("equal")
+    ax.set_xlabel("panel u (mm)")
+    ax.set_ylabel("panel v (mm)")
+    ax.legend(loc="lower right", fontsize=7, framealpha=0.9)
+    fig.tight_layout()
+    fig.savefig(path, format="png")
+    plt.close(fig)
