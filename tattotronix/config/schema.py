@@ -24,6 +24,7 @@ __all__ = [
     "BoxInertial",
     "Config",
     "FrameConfig",
+    "IkConfig",
     "InertialConfig",
     "JointConfig",
     "MaskConfig",
@@ -37,6 +38,7 @@ __all__ = [
     "ServoMountConfig",
     "Tool",
     "ToolpathConfig",
+    "TrajectoryConfig",
     "register",
 ]
 
@@ -221,6 +223,33 @@ class ToolpathConfig:
 
 
 @dataclass
+class IkConfig:
+    """Whole-path IK: damped least squares on the 5x5 task Jacobian (reference section 3)."""
+
+    damping: float = 1e-3  # lambda, added to J J^T as is
+    max_iter: int = 200
+    tol: float = 1e-6  # |e|, mixed m / unitless
+    seed: list[float] = field(default_factory=lambda: [0.0, 0.6, -0.9, 0.0, -1.2])  # rad
+    needle_axis: list[float] = field(default_factory=lambda: [0.0, 0.0, -1.0])
+    anchor_spacing_m: float = 0.005  # batched solver: an anchor every 5 mm of path
+    verify_pos_tol_m: float = 2e-6
+    verify_axis_tol_rad: float = 2e-6
+
+
+@dataclass
+class TrajectoryConfig:
+    """Time law along the IK path: feeds, joint limits, ramps.
+
+    Marking and approach run at ``toolpath.feed_mark_mm_s``; joint velocity limits come
+    from the robot's joint table. ``speed`` (root key) rescales the whole motion.
+    """
+
+    travel_feed_mm_s: float = 200.0  # cap on the tip speed of travel moves
+    accel_rad_s2: float = 7.5  # per-joint acceleration limit (1.5 rad/s over 0.2 s)
+    jerk_rad_s3: float | None = None  # optional jerk limit; null: acceleration-limited
+
+
+@dataclass
 class PathsConfig:
     """Where outputs go. Relative paths are taken from the project root."""
 
@@ -236,6 +265,9 @@ class Config:
     artwork: ArtworkConfig = field(default_factory=ArtworkConfig)
     mask: MaskConfig = field(default_factory=MaskConfig)
     toolpath: ToolpathConfig = field(default_factory=ToolpathConfig)
+    ik: IkConfig = field(default_factory=IkConfig)
+    trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
+    speed: float = 1.0  # rescales the motion: 2 draws twice as fast (marking at 2x feed)
 
 
 SCHEMAS: dict[str, Any] = {
@@ -243,6 +275,8 @@ SCHEMAS: dict[str, Any] = {
     "artwork": ArtworkConfig,
     "mask": MaskConfig,
     "toolpath": ToolpathConfig,
+    "ik": IkConfig,
+    "trajectory": TrajectoryConfig,
 }
 
 

@@ -1,0 +1,62 @@
+"""Stage `ik`: joint angles for every toolpath point (batched DLS on the 5x5 task Jacobian).
+
+Reads data/toolpath/<name>.npz and data/robot/tattotronix.urdf; writes data/ik/<name>.npz
+(joints, q, kind, uvz_mm, xyz_m, tcp, residual, stroke) and data/metrics/ik/<name>.json.
+Refuses to write anything when a point fails: the message names the point (panel mm),
+its residual and the reason.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from omegaconf import DictConfig
+
+from tattotronix.art.artwork import artwork_name
+from tattotronix.kinematics import Chain, PinocchioTip, conditioning, solve_path, verify
+from tattotronix.robot.description import build_description
+from tattotronix.stage import Outputs, run_stage
+
+log = logging.getLogger("tattotronix.ik")
+
+
+def main(cfg: DictConfig, out: Outputs) -> None:
+    """Solve, check against Pinocchio's FK on the generated URDF, write q and metrics."""
+    name = artwork_name(cfg.artwork)
+    desc = build_description(cfg.robot)
+    urdf = out.require(out.path("robot", f"{desc.name}.urdf"), "robot")
+    src = out.require(out.path("toolpath", f"{name}.npz"), "toolpath")
+    with np.load(src, allow_pickle=False) as z:
+        path = {k: z[k] for k in ("uvz_mm", "xyz_m", "kind", "stroke")}
+    ik = cfg.ik
+    chain = Chain.from_description(desc)
+    n = len(path["xyz_m"])
+
+    def progress(done: int, total: int) -> None:
+        log.info("ik %s: %d / %d points", name, done, total)
+
+    res = solve_path(chain, path["xyz_m"], needle_axis=list(ik.needle_axis), seed=list(ik.seed),
+                     damping=ik.damping, max_iter=ik.max_iter, tol=ik.tol,
+                     anchor_spacing_m=ik.anchor_spacing_m, progress=progress if n > 50_000 else None)
+    res.raise_if_failed(uvz_mm=path["uvz_mm"])
+    check = verify(PinocchioTip.from_urdf(urdf, desc.tip_frame), res, path["xyz_m"],
+                   needle_axis=list(ik.needle_axis), pos_tol_m=ik.verify_pos_tol_m,
+                   axis_tol_rad=ik.verify_axis_tol_rad)
+    cond = conditioning(chain, res.q).summary()
+    cond["worst_point_mm"] = [float(v) for v in path["uvz_mm"][cond["worst_index"]]]
+    tcp, _ = chain.fk(res.q)
+    target = out.path("ik", f"{name}.npz")
+    np.savez_compressed(out.tmp_path(target), joints=np.array(desc.joint_names), q=res.q,
+                        tcp=tcp, residual=res.residual, **path)
+    metrics = {"name": name, **res.summary(), **cond, **check.summary(),
+               "joint_range": {j: [float(res.q[:, i].min()), float(res.q[:, i].max())]
+                               for i, j in enumerate(desc.joint_names)}}
+    out.write_json(out.path("metrics", "ik", f"{name}.json"), metrics)
+    log.info("ik %s: %d points, %.1f %% converged, worst residual %.2e, %.3f s "
+             "(%.0f points/s), cond %.1f .. %.1f", name, res.points, res.converged_pct,
+             res.worst_residual, res.solve_s, metrics["points_per_s"], *cond["cond"])
+
+
+if __name__ == "__main__":
+    run_stage("ik", main)
