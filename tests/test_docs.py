@@ -45,3 +45,10 @@ def test_readme_toolpath_table_equals_the_toolpath_metrics() -> None:
         want = [d["points"], round(d["marked_mm"]), round(d["travel_mm"]), d["entries"],
                 round(d["time_s"])]
         assert _row(label) == want, label
+
+
+def test_readme_ik_table_equals_the_ik_metrics() -> None:
+    m = json.loads((ROOT / "data" / "metrics" / "ik" / "emblem.json").read_text())
+    assert _row("points") == [m["points"]]
+    assert _row("converged") == [m["converged_pct"]]
+    assert _row("condition number along the path") == [round(v, 1) for v in m["cond"]]
