@@ -27,6 +27,7 @@ __all__ = [
     "IkConfig",
     "InertialConfig",
     "JointConfig",
+    "KinematicsStudyConfig",
     "MaskConfig",
     "MaskMethod",
     "MassModel",
@@ -36,6 +37,7 @@ __all__ = [
     "RobotConfig",
     "ServoConfig",
     "ServoMountConfig",
+    "StudyConfig",
     "Tool",
     "ToolpathConfig",
     "TrajectoryConfig",
@@ -250,6 +252,27 @@ class TrajectoryConfig:
 
 
 @dataclass
+class KinematicsStudyConfig:
+    """The kinematics study (reference section 3.4). Placements pair widths[i] with offsets[i]."""
+
+    reach_nx: int = 33
+    reach_ny: int = 23
+    placement_widths_mm: list[float] = field(
+        default_factory=lambda: [120.0, 150.0, 120.0, 100.0, 150.0, 120.0, 150.0, 150.0])
+    placement_offsets_mm: list[float] = field(
+        default_factory=lambda: [0.0, 0.0, 15.0, 30.0, 15.0, 30.0, 30.0, 45.0])
+    workspace_samples: int = 60_000
+    workspace_seed: int = 0
+
+
+@dataclass
+class StudyConfig:
+    """Settings of the study stages."""
+
+    kinematics: KinematicsStudyConfig = field(default_factory=KinematicsStudyConfig)
+
+
+@dataclass
 class PathsConfig:
     """Where outputs go. Relative paths are taken from the project root."""
 
@@ -267,6 +290,7 @@ class Config:
     toolpath: ToolpathConfig = field(default_factory=ToolpathConfig)
     ik: IkConfig = field(default_factory=IkConfig)
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
+    study: StudyConfig = field(default_factory=StudyConfig)
     speed: float = 1.0  # rescales the motion: 2 draws twice as fast (marking at 2x feed)
 
 
@@ -277,6 +301,7 @@ SCHEMAS: dict[str, Any] = {
     "toolpath": ToolpathConfig,
     "ik": IkConfig,
     "trajectory": TrajectoryConfig,
+    "study": StudyConfig,
 }
 
 
