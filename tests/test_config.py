@@ -22,6 +22,8 @@ from tattotronix.config.params import (
 from .conftest import PYTHON, ROOT
 
 ENV = {k: v for k, v in os.environ.items() if not k.startswith("DVC_")}
+# DVC runs `python stages/...`: make that the interpreter running the tests
+ENV["PATH"] = os.pathsep.join([str(Path(PYTHON).parent), ENV.get("PATH", "")])
 
 
 def _project_copy(tmp: Path) -> Path:

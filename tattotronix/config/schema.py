@@ -247,8 +247,9 @@ class TrajectoryConfig:
     """
 
     travel_feed_mm_s: float = 200.0  # cap on the tip speed of travel moves
-    accel_rad_s2: float = 7.5  # per-joint acceleration limit (1.5 rad/s over 0.2 s)
-    jerk_rad_s3: float | None = None  # optional jerk limit; null: acceleration-limited
+    accel_rad_s2: float = 10.0  # per-joint acceleration limit (see conf/trajectory)
+    jerk_rad_s3: float | None = None  # jerk limits are not implemented: must be null
+    max_step_mm: float = 0.5  # longer segments (travel, lifts) get points on the tip line
 
 
 @dataclass

@@ -1,0 +1,62 @@
+"""Trajectory: time-parameterisation wall time, points per second, cycle over marking.
+
+On the built-in artwork's IK path when the ``ik`` stage has made it (``data/ik/emblem.npz``)
+and on the 16 000-point logo-like synthetic path (IK solved here, not timed). The timed
+call is the whole plan: densify (IK on inserted travel points), path derivatives, the
+speed check and the forward/backward time law. ``cycle_over_marking`` is the planned
+duration over the marking-only time (marked length / feed); the goal is 1.10, the
+original needed 1.31.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from run import Row, median_time
+
+from tattotronix.config.params import compose
+from tattotronix.kinematics import Chain, solve_path
+from tattotronix.kinematics.synthetic import logo_like_strokes, stroke_path
+from tattotronix.robot.description import build_description
+from tattotronix.trajectory import JointLimits, JointPath, TrajectoryParams, plan_trajectory
+
+EMBLEM = Path(__file__).resolve().parents[1] / "data" / "ik" / "emblem.npz"
+
+
+def _rows(label: str, path: JointPath, chain: Chain, limits: JointLimits,
+          params: TrajectoryParams, repeat: int) -> list[Row]:
+    t, traj = median_time(lambda: plan_trajectory(path, chain, limits, params), repeat)
+    m = traj.metrics()
+    law = traj.timings_s["time_law"]
+    return [
+        (f"plan [{label}]", t, "s",
+         f"{len(path)} IK points -> {m['points']} ({m['points_inserted']} inserted); "
+         f"time law alone {law * 1000:.1f} ms, {m['timelaw_stepped_points']} points stepped"),
+        (f"points per second [{label}]", len(path) / t, "points/s", "IK points over plan time"),
+        (f"cycle_over_marking [{label}]", m["cycle_over_marking"], "x",
+         f"{m['duration_s']:.1f} s for {m['marking_only_s']:.1f} s of marking; approach "
+         f"{m['approach_s']:.1f} s, travel {m['travel_s']:.1f} s, {m['entries']} entries; "
+         f"goal 1.10, original 1.31"),
+        (f"fastest speed [{label}]", m["fastest_speed"] or float("nan"), "x",
+         f"limited by {m['fastest_speed_joint']} {m['fastest_speed_limited_by']}"),
+    ]
+
+
+def bench(repeat: int) -> list[Row]:
+    cfg = compose()
+    desc = build_description(cfg.robot)
+    chain = Chain.from_description(desc)
+    params = TrajectoryParams.from_config(cfg)
+    limits = JointLimits.from_description(desc, params.accel_rad_s2)
+    rows: list[Row] = []
+    if EMBLEM.exists():
+        rows += _rows("emblem", JointPath.from_npz(EMBLEM), chain, limits, params, repeat)
+    else:
+        rows.append(("plan [emblem]", float("nan"), "s",
+                     "data/ik/emblem.npz missing: run stages/ik.py"))
+    sp = stroke_path(logo_like_strokes())
+    res = solve_path(chain, sp.xyz_m)
+    tcp, _ = chain.fk(res.q)
+    synthetic = JointPath.from_arrays(chain.joint_names, res.q, tcp, sp.kind, sp.uvz_mm)
+    rows += _rows("16k synthetic", synthetic, chain, limits, params, repeat)
+    return rows

@@ -1,0 +1,62 @@
+"""Stage `trajectory`: time the IK path within the joint limits and export the npz.
+
+Reads data/ik/<name>.npz and data/robot/tattotronix.urdf (hashed into the provenance);
+writes data/trajectories/<name>.npz (joints, t, q, qd, qdd, kind, marked, tcp,
+provenance) and data/metrics/trajectory/<name>.json. Refuses (writing nothing) a
+``speed`` that cannot hold the marking feed within the joint limits, naming the joint,
+the rate it would need and the fastest speed the drawing can go.
+"""
+
+from __future__ import annotations
+
+import logging
+
+from omegaconf import DictConfig, OmegaConf
+
+from tattotronix.art.artwork import artwork_name
+from tattotronix.kinematics import Chain
+from tattotronix.robot.description import build_description
+from tattotronix.stage import Outputs, code_version, run_stage
+from tattotronix.trajectory import (
+    JointLimits,
+    JointPath,
+    TrajectoryParams,
+    plan_trajectory,
+    provenance_json,
+)
+
+log = logging.getLogger("tattotronix.trajectory")
+
+
+def main(cfg: DictConfig, out: Outputs) -> None:
+    """Plan the trajectory of one artwork and write it with its metrics."""
+    name = artwork_name(cfg.artwork)
+    src = out.require(out.path("ik", f"{name}.npz"), "ik")
+    desc = build_description(cfg.robot)
+    urdf = out.require(out.path("robot", f"{desc.name}.urdf"), "robot")
+    params = TrajectoryParams.from_config(cfg)
+    limits = JointLimits.from_description(desc, params.accel_rad_s2)
+    ik = cfg.ik
+    traj = plan_trajectory(
+        JointPath.from_npz(src), Chain.from_description(desc), limits, params,
+        ik={"needle_axis": list(ik.needle_axis), "damping": ik.damping,
+            "max_iter": ik.max_iter, "tol": ik.tol, "anchor_spacing_m": ik.anchor_spacing_m})
+    config = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+    assert isinstance(config, dict)
+    prov = provenance_json({str(k): v for k, v in config.items()},
+                           {"ik": src, "urdf": urdf}, code_version())
+    target = out.path("trajectories", f"{name}.npz")
+    traj.save_npz(out.tmp_path(target), prov)
+    metrics = {"name": name, **traj.metrics()}
+    out.write_json(out.path("metrics", "trajectory", f"{name}.json"), metrics)
+    log.info("trajectory %s: %d points (%d inserted), %.1f s for %.1f s of marking "
+             "(x%.3f), %d entries, peak %.2f rad/s, %.2f rad/s^2, fastest speed %s; "
+             "planned in %.3f s", name, metrics["points"], metrics["points_inserted"],
+             metrics["duration_s"], metrics["marking_only_s"], metrics["cycle_over_marking"],
+             metrics["entries"], metrics["peak_rate_rad_s_max"],
+             metrics["peak_accel_rad_s2_max"], metrics["fastest_speed"],
+             traj.timings_s["total"])
+
+
+if __name__ == "__main__":
+    run_stage("trajectory", main)

@@ -1,0 +1,61 @@
+"""Trajectory: a time law along the IK path within the joint limits, and its npz export.
+
+* :mod:`~tattotronix.trajectory.path`: the joint-space path, densified travel, path
+  derivatives.
+* :mod:`~tattotronix.trajectory.timelaw`: the discrete time-optimal law (velocity and
+  acceleration limits, continuous velocity).
+* :mod:`~tattotronix.trajectory.plan`: feeds, the speed check and refusal, the
+  :class:`Trajectory`, its metrics and ``data/trajectories/<name>.npz``.
+"""
+
+from __future__ import annotations
+
+from tattotronix.trajectory.path import (
+    APPROACH,
+    MARK,
+    TRAVEL,
+    JointPath,
+    densify,
+    path_derivatives,
+    segment_kinds,
+    turn_radii,
+)
+from tattotronix.trajectory.plan import (
+    NPZ_KEYS,
+    SpeedLimit,
+    SpeedRefused,
+    StoredTrajectory,
+    Trajectory,
+    TrajectoryParams,
+    file_sha256,
+    load_trajectory,
+    plan_trajectory,
+    provenance_json,
+    speed_limit,
+)
+from tattotronix.trajectory.timelaw import JointLimits, TimeLaw, time_parameterise
+
+__all__ = [
+    "APPROACH",
+    "MARK",
+    "NPZ_KEYS",
+    "TRAVEL",
+    "JointLimits",
+    "JointPath",
+    "SpeedLimit",
+    "SpeedRefused",
+    "StoredTrajectory",
+    "TimeLaw",
+    "Trajectory",
+    "TrajectoryParams",
+    "densify",
+    "file_sha256",
+    "load_trajectory",
+    "path_derivatives",
+    "plan_trajectory",
+    "provenance_json",
+    "segment_kinds",
+    "speed_limit",
+    "time_parameterise",
+    "turn_radii",
+]

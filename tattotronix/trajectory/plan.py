@@ -1,0 +1,491 @@
+"""The trajectory: time-stamped joint motion along the IK path, within the joint limits.
+
+What :func:`plan_trajectory` does (``stages/trajectory.py`` calls it):
+
+1. **Densify** (:func:`~tattotronix.trajectory.path.densify`): chords longer than
+   ``max_step_m`` (travel, plunge, retract, approach) get points every ``max_step_m``
+   on the straight tip line, with IK, so ramps can be drawn and the tip stays in the
+   clearance band between samples.
+2. **Caps**: each point's path-speed cap is the lower feed of its two segments:
+   marking and approach at ``toolpath.feed_mark_mm_s`` x ``speed``, travel at
+   ``trajectory.travel_feed_mm_s`` x ``speed``.
+3. **Speed check** (:func:`speed_limit`): at every point the marking feed must be held
+   (points on a marking or approach segment, except path ends and *corners*: bends
+   tighter than ``corner_radius_m``, half the stroke pitch by default, where the law
+   has to slow whatever the speed), the joint rates needed at ``feed x speed`` must be
+   inside the limits: ``|dq/ds| F S <= v`` and ``|d2q/ds2| (F S)^2 <= a``. If not, the
+   plan is refused (:class:`SpeedRefused`) naming the joint, the rate needed and the
+   fastest speed, ``floor(100 S_max) / 100``, as the original's ``plan.py`` did.
+4. **Time law** (:func:`~tattotronix.trajectory.timelaw.time_parameterise`): the fastest
+   rest-to-rest law under the caps, the joint velocity limits and the per-joint
+   acceleration limit (at both ends of every interval and over the interval), so
+   velocity is continuous (a step between samples is at most ``a dt``) and travel
+   goes as fast as the limits allow.
+
+Units: SI inside (m, rad, s); mm only in names that say so.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import time
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tattotronix.kinematics import Chain
+from tattotronix.stage import TattotronixError
+from tattotronix.trajectory.path import (
+    APPROACH,
+    MARK,
+    TRAVEL,
+    JointPath,
+    densify,
+    path_derivatives,
+    segment_kinds,
+    turn_radii,
+)
+from tattotronix.trajectory.timelaw import JointLimits, TimeLaw, time_parameterise
+
+__all__ = [
+    "NPZ_KEYS",
+    "SpeedLimit",
+    "SpeedRefused",
+    "StoredTrajectory",
+    "Trajectory",
+    "TrajectoryParams",
+    "file_sha256",
+    "load_trajectory",
+    "plan_trajectory",
+    "provenance_json",
+    "speed_limit",
+]
+
+Array = NDArray[np.float64]
+#: the keys of ``data/trajectories/<name>.npz`` (design section 8)
+NPZ_KEYS = ("joints", "t", "q", "qd", "qdd", "kind", "marked", "tcp", "provenance")
+
+
+@dataclass(frozen=True)
+class TrajectoryParams:
+    """How to time a path.
+
+    Attributes:
+        feed_mark_m_s: marking and approach feed (tip speed), m/s, at ``speed`` 1.
+        travel_feed_m_s: cap on the tip speed of travel, m/s, at ``speed`` 1.
+        accel_rad_s2: per-joint acceleration limit, rad/s^2 (not scaled by ``speed``).
+        speed: rescales every feed (2 draws twice as fast where the limits allow).
+        max_step_m: longest chord kept as is; longer ones are split (IK), m.
+        corner_radius_m: bends tighter than this are corners, where the law may slow
+            below the feed; elsewhere the feed must be held or the speed is refused, m.
+        jerk_rad_s3: a jerk limit; only ``None`` (acceleration-limited) is supported.
+    """
+
+    feed_mark_m_s: float = 0.006
+    travel_feed_m_s: float = 0.200
+    accel_rad_s2: float = 7.5
+    speed: float = 1.0
+    max_step_m: float = 0.5e-3
+    corner_radius_m: float = 0.6e-3
+    jerk_rad_s3: float | None = None
+
+    @classmethod
+    def from_config(cls, cfg: Any) -> TrajectoryParams:
+        """From the composed config: ``toolpath.feed_mark_mm_s`` (the one marking feed),
+        ``trajectory.*``, root ``speed``; corners below half ``toolpath.pitch_mm``."""
+        tr = cfg.trajectory
+        return cls(
+            feed_mark_m_s=float(cfg.toolpath.feed_mark_mm_s) / 1000.0,
+            travel_feed_m_s=float(tr.travel_feed_mm_s) / 1000.0,
+            accel_rad_s2=float(tr.accel_rad_s2),
+            speed=float(cfg.speed),
+            corner_radius_m=float(cfg.toolpath.pitch_mm) / 2000.0,
+            max_step_m=float(tr.max_step_mm) / 1000.0,
+            jerk_rad_s3=None if tr.jerk_rad_s3 is None else float(tr.jerk_rad_s3),
+        )
+
+    def validate(self) -> None:
+        """Raise :class:`TattotronixError` for a value the planner cannot use."""
+        for name, value, key in (
+                ("marking feed", self.feed_mark_m_s * 1000, "toolpath.feed_mark_mm_s"),
+                ("travel feed", self.travel_feed_m_s * 1000, "trajectory.travel_feed_mm_s"),
+                ("acceleration limit", self.accel_rad_s2, "trajectory.accel_rad_s2"),
+                ("speed", self.speed, "speed"),
+                ("densify step", self.max_step_m * 1000, "trajectory.max_step_mm"),
+                ("corner radius", self.corner_radius_m, "corner_radius_m")):
+            if not (math.isfinite(value) and value > 0):
+                raise TattotronixError(f"the {name} must be a positive number, got {key}="
+                                       f"{value:g}")
+        if self.jerk_rad_s3 is not None:
+            raise TattotronixError(
+                f"trajectory.jerk_rad_s3={self.jerk_rad_s3:g}: jerk-limited profiles are not "
+                "implemented; the time law is acceleration-limited (set "
+                "trajectory.jerk_rad_s3=null)")
+
+
+class SpeedRefused(TattotronixError):
+    """``speed`` would need a joint rate beyond its limit to hold the marking feed."""
+
+    def __init__(self, limit: SpeedLimit):
+        super().__init__(limit.message())
+        self.limit = limit
+
+
+@dataclass(frozen=True)
+class SpeedLimit:
+    """How fast a drawing can go: the joint that binds while holding the marking feed.
+
+    Attributes:
+        speed: the requested speed.
+        exact: the largest speed that holds the feed within the limits (``inf`` when no
+            point holds a feed).
+        fastest: ``exact`` floored to two decimals (what the refusal offers).
+        joint: the binding joint ('' when none).
+        quantity: ``velocity`` or ``acceleration``.
+        need: the rate that joint needs at ``speed``, rad/s or rad/s^2.
+        limit: its limit, same unit.
+        index: the binding path point.
+        uvz_mm: its panel coordinates, mm.
+        radius_m: the tip path's radius of curvature there, m (``inf``: straight).
+        held_points: points where the feed must be held.
+    """
+
+    speed: float
+    exact: float
+    fastest: float
+    joint: str
+    quantity: str
+    need: float
+    limit: float
+    index: int
+    uvz_mm: tuple[float, float, float]
+    radius_m: float
+    held_points: int
+
+    @property
+    def ok(self) -> bool:
+        """The requested speed holds the feed within every limit."""
+        return self.speed <= self.exact
+
+    def message(self) -> str:
+        """The refusal, in the original's words (reference section 3.3)."""
+        unit = "rad/s" if self.quantity == "velocity" else "rad/s^2"
+        where = f"panel ({self.uvz_mm[0]:.2f}, {self.uvz_mm[1]:.2f}) mm"
+        if self.quantity == "acceleration" and math.isfinite(self.radius_m):
+            where += f", a bend of radius {self.radius_m * 1000:.2f} mm"
+        return (f"speed={self.speed:g} is too fast for this drawing: to hold the marking "
+                f"feed at {where}, {self.joint} would need {self.need:.2f} {unit} against "
+                f"its {self.limit:g} {unit} limit; the fastest this drawing can go is "
+                f"speed={self.fastest:.2f}")
+
+    def raise_if_too_fast(self) -> None:
+        """Raise :class:`SpeedRefused` unless :attr:`ok`."""
+        if not self.ok:
+            raise SpeedRefused(self)
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready figures (``None`` for an unbounded speed)."""
+        finite = math.isfinite(self.exact)
+        return {
+            "fastest_speed": self.fastest if finite else None,
+            "fastest_speed_exact": self.exact if finite else None,
+            "fastest_speed_joint": self.joint or None,
+            "fastest_speed_limited_by": self.quantity or None,
+            "fastest_speed_uv_mm": [self.uvz_mm[0], self.uvz_mm[1]] if finite else None,
+        }
+
+
+def speed_limit(path: JointPath, dq: Array, d2q: Array, limits: JointLimits, *,
+                feed_m_s: float, speed: float, corner_radius_m: float) -> SpeedLimit:
+    """The fastest speed that holds the marking feed (see the module docstring, step 3).
+
+    Args:
+        path: the (densified) path.
+        dq: (N, n) ``dq/ds``, rad/m.
+        d2q: (N, n) ``d2q/ds2``, rad/m^2.
+        limits: joint limits.
+        feed_m_s: the marking feed at speed 1, m/s.
+        speed: the requested speed.
+        corner_radius_m: bends tighter than this are corners (exempt), m.
+    """
+    n_pts = len(path)
+    seg = path.segment_kinds()
+    slow_seg = seg != TRAVEL
+    held = np.zeros(n_pts, bool)
+    held[:-1] |= slow_seg
+    held[1:] |= slow_seg
+    held[[0, -1]] = False
+    radius = turn_radii(path.tcp)
+    held &= radius >= corner_radius_m
+    idx = np.flatnonzero(held)
+    if idx.size == 0:
+        return SpeedLimit(speed, math.inf, math.inf, "", "", 0.0, 0.0, -1, (0.0, 0.0, 0.0),
+                          math.inf, 0)
+    f = feed_m_s
+    # the speed at which each (point, joint) reaches its limit
+    with np.errstate(divide="ignore"):
+        s_vel = limits.velocity / (f * np.abs(dq[idx]))
+        s_acc = np.sqrt(limits.acceleration / (f * f * np.abs(d2q[idx])))
+    kv = np.unravel_index(int(np.argmin(s_vel)), s_vel.shape)
+    ka = np.unravel_index(int(np.argmin(s_acc)), s_acc.shape)
+    if s_vel[kv] <= s_acc[ka]:
+        (row, j), quantity, exact = kv, "velocity", float(s_vel[kv])
+        need = f * speed * abs(float(dq[idx[row], j]))
+        lim = float(limits.velocity[j])
+    else:
+        (row, j), quantity, exact = ka, "acceleration", float(s_acc[ka])
+        need = (f * speed) ** 2 * abs(float(d2q[idx[row], j]))
+        lim = float(limits.acceleration[j])
+    i = int(idx[row])
+    fastest = math.floor(100.0 * exact) / 100.0 if math.isfinite(exact) else math.inf
+    u = path.uvz_mm[i]
+    return SpeedLimit(speed, exact, fastest, limits.joints[j], quantity, need, lim, i,
+                      (float(u[0]), float(u[1]), float(u[2])), float(radius[i]), int(idx.size))
+
+
+def _caps(seg: NDArray[np.int8], n_pts: int, mark: float, travel: float) -> Array:
+    feed = np.where(seg == TRAVEL, travel, mark)
+    cap = np.full(n_pts, math.inf)
+    cap[:-1] = feed
+    cap[1:] = np.minimum(cap[1:], feed)
+    return cap
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A timed joint trajectory (what ``data/trajectories/<name>.npz`` holds, and more).
+
+    Attributes:
+        joints: joint names.
+        t: (N,) time, s, from 0, strictly increasing.
+        q: (N, n) joint angles, rad.
+        qd: (N, n) joint velocities, rad/s.
+        qdd: (N, n) joint accelerations, rad/s^2.
+        kind: (N,) int8 point kinds (0 travel, 1 mark, 2 approach).
+        marked: (N,) the segment ending at each point is ink.
+        tcp: (N, 3) FK tip of ``q``, m.
+        uvz_mm: (N, 3) panel coordinates, mm.
+        source: (N,) index in the IK path, -1 for inserted points.
+        law: the time law (arc length, path speed, interval-end accelerations).
+        limits: the joint limits it keeps.
+        params: the settings it was planned with.
+        speed: the speed check.
+        entries: needle entries.
+        marked_m: marked length, m.
+        timings_s: wall times of the steps (densify, derivatives, time law), s.
+    """
+
+    joints: tuple[str, ...]
+    t: Array
+    q: Array
+    qd: Array
+    qdd: Array
+    kind: NDArray[np.int8]
+    marked: NDArray[np.bool_]
+    tcp: Array
+    uvz_mm: Array
+    source: NDArray[np.int64]
+    law: TimeLaw
+    limits: JointLimits
+    params: TrajectoryParams
+    speed: SpeedLimit
+    entries: int
+    marked_m: float
+    timings_s: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def duration_s(self) -> float:
+        """Total time, s."""
+        return self.law.duration_s
+
+    @property
+    def marking_only_s(self) -> float:
+        """Marked length over the marking feed (x speed), s."""
+        return self.marked_m / (self.params.feed_mark_m_s * self.params.speed)
+
+    def segment_kinds(self) -> NDArray[np.int8]:
+        """(N-1,) 1 marking, 2 approach, 0 travel."""
+        return segment_kinds(self.kind)
+
+    def metrics(self) -> dict[str, Any]:
+        """The stage's metrics (JSON-ready)."""
+        seg = self.segment_kinds()
+        dt = np.diff(self.t)
+        chord = np.abs(np.diff(self.qd, axis=0)) / dt[:, None]  # mean accel per interval
+        peak_v = np.abs(self.qd).max(axis=0)
+        peak_a = np.abs(self.law.qdd_ends).max(axis=(0, 1))
+        feed = self.params.feed_mark_m_s * self.params.speed
+        mean_v = 0.5 * (self.law.sdot[:-1] + self.law.sdot[1:])
+        h = np.diff(self.law.s)
+        mark = seg == MARK
+        slow_len = float(h[mark & (mean_v < 0.99 * feed)].sum())
+        mark_len = float(h[mark].sum())
+        names = self.joints
+        out: dict[str, Any] = {
+            "duration_s": self.duration_s,
+            "marking_only_s": self.marking_only_s,
+            "cycle_over_marking": self.duration_s / self.marking_only_s
+            if self.marked_m > 0 else None,
+            "marking_s": float(dt[mark].sum()),
+            "approach_s": float(dt[seg == APPROACH].sum()),
+            "travel_s": float(dt[seg == TRAVEL].sum()),
+            "entries": self.entries,
+            "speed": self.params.speed,
+            "marked_mm": self.marked_m * 1000.0,
+            "points": len(self.t),
+            "points_inserted": int((self.source < 0).sum()),
+            "peak_rate_rad_s": {j: float(v) for j, v in zip(names, peak_v, strict=True)},
+            "peak_rate_rad_s_max": float(peak_v.max()),
+            "peak_accel_rad_s2": {j: float(a) for j, a in zip(names, peak_a, strict=True)},
+            "peak_accel_rad_s2_max": float(peak_a.max()),
+            "peak_step_accel_rad_s2_max": float(chord.max()) if len(chord) else 0.0,
+            "velocity_limit_rad_s": {j: float(v) for j, v in
+                                     zip(names, self.limits.velocity, strict=True)},
+            "accel_limit_rad_s2": float(self.limits.acceleration.max()),
+            "feed_mark_mm_s": feed * 1000.0,
+            "travel_feed_mm_s": self.params.travel_feed_m_s * self.params.speed * 1000.0,
+            "marking_below_feed_pct": 100.0 * slow_len / mark_len if mark_len > 0 else 0.0,
+            "peak_tip_speed_mm_s": float(self.law.sdot.max()) * 1000.0,
+            "timelaw_stepped_points": self.law.stepped,
+            "timings_s": dict(self.timings_s),
+            **self.speed.summary(),
+        }
+        return out
+
+    def save_npz(self, file: str | Path, provenance: str) -> None:
+        """Write the design section 8 npz (compressed; loads with ``allow_pickle=False``).
+
+        Args:
+            file: target path (ending in ``.npz``).
+            provenance: a JSON string (:func:`provenance_json`).
+        """
+        json.loads(provenance)  # must be JSON
+        np.savez_compressed(
+            file,
+            joints=np.array(self.joints, dtype=np.str_),
+            t=self.t.astype(np.float64), q=self.q.astype(np.float64),
+            qd=self.qd.astype(np.float64), qdd=self.qdd.astype(np.float64),
+            kind=self.kind.astype(np.int8), marked=self.marked.astype(np.bool_),
+            tcp=self.tcp.astype(np.float64), provenance=np.array(provenance, dtype=np.str_),
+        )
+
+
+@dataclass(frozen=True)
+class StoredTrajectory:
+    """A trajectory as read back from its npz.
+
+    Attributes:
+        joints: joint names.
+        t, q, qd, qdd, kind, marked, tcp: the arrays (see :class:`Trajectory`).
+        provenance: the parsed provenance (config, code_version, inputs).
+    """
+
+    joints: tuple[str, ...]
+    t: Array
+    q: Array
+    qd: Array
+    qdd: Array
+    kind: NDArray[np.int8]
+    marked: NDArray[np.bool_]
+    tcp: Array
+    provenance: dict[str, Any]
+
+
+def load_trajectory(file: str | Path) -> StoredTrajectory:
+    """Read ``data/trajectories/<name>.npz`` (``allow_pickle=False``).
+
+    Raises:
+        TattotronixError: a key is missing.
+    """
+    with np.load(file, allow_pickle=False) as z:
+        missing = [k for k in NPZ_KEYS if k not in z.files]
+        if missing:
+            raise TattotronixError(f"{file} is not a trajectory: missing {missing}; re-run "
+                                   "the 'trajectory' stage")
+        return StoredTrajectory(
+            joints=tuple(str(j) for j in z["joints"]), t=z["t"], q=z["q"], qd=z["qd"],
+            qdd=z["qdd"], kind=z["kind"], marked=z["marked"], tcp=z["tcp"],
+            provenance=json.loads(str(z["provenance"])))
+
+
+def file_sha256(file: str | Path) -> str:
+    """Hex SHA-256 of a file's bytes."""
+    h = hashlib.sha256()
+    with open(file, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def provenance_json(config: Mapping[str, Any], inputs: Mapping[str, str | Path],
+                    code_version: str) -> str:
+    """The provenance string: the resolved config, the code version, input file hashes.
+
+    Args:
+        config: the composed config as plain containers (``OmegaConf.to_container(cfg,
+            resolve=True, enum_to_str=True)``).
+        inputs: role -> file (``{"ik": ..., "urdf": ...}``).
+        code_version: ``tattotronix.stage.code_version()``.
+    """
+    return json.dumps({
+        "config": dict(config),
+        "code_version": code_version,
+        "inputs": {k: {"path": str(p), "sha256": file_sha256(p)} for k, p in inputs.items()},
+    }, sort_keys=True)
+
+
+def plan_trajectory(path: JointPath, chain: Chain, limits: JointLimits,
+                    params: TrajectoryParams, *, ik: Mapping[str, Any] | None = None,
+                    check_speed: bool = True) -> Trajectory:
+    """Time an IK path (see the module docstring).
+
+    Args:
+        path: the IK path (:meth:`JointPath.from_npz`).
+        chain: the kinematic model (densify's IK, the tip of the final ``q``).
+        limits: joint velocity and acceleration limits.
+        params: feeds, speed, densify step, corner radius.
+        ik: keyword arguments for the densify IK (``needle_axis``, ``damping``, ...).
+        check_speed: refuse a speed that cannot hold the marking feed.
+
+    Returns:
+        The trajectory.
+
+    Raises:
+        SpeedRefused: ``params.speed`` cannot hold the marking feed within the limits.
+        TattotronixError: bad parameters, a path the limits cannot time, IK failure on a
+            densified chord, or joint names that differ from the limits'.
+    """
+    params.validate()
+    if tuple(path.joints) != tuple(limits.joints):
+        raise TattotronixError(f"the path's joints {list(path.joints)} are not the robot's "
+                               f"{list(limits.joints)}: re-run the 'ik' stage")
+    t0 = time.perf_counter()
+    dense = densify(path, chain, params.max_step_m, ik)
+    t1 = time.perf_counter()
+    s = dense.arc_length()
+    dq, d2q = path_derivatives(dense.q, s)
+    t2 = time.perf_counter()
+    check = speed_limit(dense, dq, d2q, limits, feed_m_s=params.feed_mark_m_s,
+                        speed=params.speed, corner_radius_m=params.corner_radius_m)
+    if check_speed:
+        check.raise_if_too_fast()
+    seg = dense.segment_kinds()
+    caps = _caps(seg, len(dense), params.feed_mark_m_s * params.speed,
+                 params.travel_feed_m_s * params.speed)
+    law = time_parameterise(s, dq, d2q, caps, limits)
+    law.check(limits)
+    tcp, _ = chain.fk(dense.q)
+    t3 = time.perf_counter()
+    return Trajectory(
+        joints=dense.joints, t=law.t, q=dense.q, qd=law.qd, qdd=law.qdd, kind=dense.kind,
+        marked=dense.marked(), tcp=tcp, uvz_mm=dense.uvz_mm, source=dense.source, law=law,
+        limits=limits, params=params, speed=check, entries=dense.entries(),
+        marked_m=dense.marked_length_m(),
+        timings_s={"densify": t1 - t0, "derivatives": t2 - t1, "time_law": law.solve_s,
+                   "total": t3 - t0})
