@@ -52,3 +52,13 @@ def test_readme_ik_table_equals_the_ik_metrics() -> None:
     assert _row("points") == [m["points"]]
     assert _row("converged") == [m["converged_pct"]]
     assert _row("condition number along the path") == [round(v, 1) for v in m["cond"]]
+
+
+def test_readme_trajectory_table_equals_the_trajectory_metrics() -> None:
+    m = json.loads((ROOT / "data" / "metrics" / "trajectory" / "emblem.json").read_text())
+    assert _row("duration") == [round(m["duration_s"], 1)]
+    assert _row("marking-only time (marked length / feed)") == [round(m["marking_only_s"], 1)]
+    assert _row("cycle over marking") == [round(m["cycle_over_marking"], 3)]
+    assert _row("fastest speed") == [round(m["fastest_speed"], 2)]
+    k = json.loads((ROOT / "data" / "metrics" / "kinematics" / "emblem.json").read_text())
+    assert f"{k['reachability']['reachable_pct']:.3f} %" in README
