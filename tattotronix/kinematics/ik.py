@@ -85,6 +85,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from tattotronix.config.schema import IkConfig
 from tattotronix.kinematics.chain import Chain, Num, SoaState, Vec3
 from tattotronix.robot.description import RobotDescription
 from tattotronix.stage import TattotronixError
@@ -108,12 +109,13 @@ __all__ = [
 Array = NDArray[np.float64]
 Progress = Callable[[int, int], None]
 
-DAMPING = 1e-3
-MAX_ITER = 200
-TOL = 1e-6
-SEED = (0.0, 0.6, -0.9, 0.0, -1.2)
-NEEDLE_AXIS = (0.0, 0.0, -1.0)
-ANCHOR_SPACING_M = 0.005
+_DEFAULTS = IkConfig()  # conf/ik: the original's solver settings (reference section 3.2)
+DAMPING = _DEFAULTS.damping
+MAX_ITER = _DEFAULTS.max_iter
+TOL = _DEFAULTS.tol
+SEED = tuple(_DEFAULTS.seed)
+NEEDLE_AXIS = tuple(_DEFAULTS.needle_axis)
+ANCHOR_SPACING_M = _DEFAULTS.anchor_spacing_m
 BRANCH_TOL_RAD = 0.05
 BLOCK = 65536  # points solved in one lockstep batch
 JOINT_LIMIT = "joint limit"
