@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from tattotronix.config.params import compose
 from tattotronix.kinematics import (
     Chain,
     IkFailure,
@@ -22,7 +27,8 @@ from tattotronix.kinematics import (
     verify,
 )
 from tattotronix.kinematics.synthetic import logo_like_strokes, raster_strokes, stroke_path
-from tattotronix.robot.description import RobotDescription
+from tattotronix.robot.description import RobotDescription, build_description
+from tattotronix.robot.urdf import to_urdf
 from tattotronix.stage import TattotronixError
 
 DOWN = np.array([0.0, 0.0, -1.0])
@@ -335,3 +341,39 @@ def test_logo_like_path_matches_reference_and_original_ranges(chain: Chain,
     # the same kind of numbers as the original's logo (section 3.4): sigma_1 ~ 1.75
     assert 1.7 < c["sigma1"][0] <= c["sigma1"][1] < 1.8
     assert 0.03 < c["sigma5"][0] and c["cond"][1] < 60
+
+
+def _ik_stage(data: Path, *overrides: str) -> subprocess.CompletedProcess[str]:
+    root = Path(__file__).resolve().parents[1]
+    env = {k: v for k, v in os.environ.items() if not k.startswith("DVC_")}
+    return subprocess.run([sys.executable, str(root / "stages" / "ik.py"), f"paths.data={data}",
+                           "artwork.name=t", *overrides],
+                          cwd=data, env=env, capture_output=True, text=True)
+
+
+def test_ik_stage_refuses_an_unreachable_placement_and_writes_nothing(tmp_path: Path) -> None:
+    desc = build_description(compose().robot)
+    (tmp_path / "robot").mkdir()
+    (tmp_path / "robot" / "tattotronix.urdf").write_text(to_urdf(desc))
+    (tmp_path / "toolpath").mkdir()
+    uvz = np.array([[0.0, 0.0, -1.5], [10.0, 0.0, -1.5], [190.0, 0.0, -1.5], [0.0, 5.0, -1.5]])
+    xyz = np.array([0.21, 0.0, 0.005]) + uvz / 1000.0
+    np.savez(tmp_path / "toolpath" / "t.npz", uvz_mm=uvz, xyz_m=xyz,
+             kind=np.array([2, 1, 1, 1], dtype=np.int8), stroke=np.zeros(4, dtype=np.int32))
+    run = _ik_stage(tmp_path)
+    assert run.returncode == 2, run.stderr
+    assert "190.00" in run.stderr and "residual" in run.stderr
+    assert not (tmp_path / "ik").exists() and not (tmp_path / "metrics").exists()
+    # the same path without the unreachable point is solved and written
+    keep = [0, 1, 3]
+    np.savez(tmp_path / "toolpath" / "t.npz", uvz_mm=uvz[keep], xyz_m=xyz[keep],
+             kind=np.array([2, 1, 1], dtype=np.int8), stroke=np.zeros(3, dtype=np.int32))
+    run = _ik_stage(tmp_path)
+    assert run.returncode == 0, run.stderr
+    with np.load(tmp_path / "ik" / "t.npz", allow_pickle=False) as z:
+        assert z["q"].shape == (3, 5) and list(z["joints"]) == list(desc.joint_names)
+
+
+def test_ik_stage_names_the_missing_stage(tmp_path: Path) -> None:
+    run = _ik_stage(tmp_path)
+    assert run.returncode == 2 and "'robot' stage" in run.stderr
