@@ -94,8 +94,9 @@ class Outputs:
         return path
 
     def _tmp(self, target: Path) -> Path:
+        """Register a temporary next to ``target`` (same suffix, for writers that check it)."""
         target.parent.mkdir(parents=True, exist_ok=True)
-        tmp = target.with_name(f".{target.name}.tmp{os.getpid()}")
+        tmp = target.with_name(f".{target.stem}.tmp{os.getpid()}{target.suffix}")
         self._pending.append((tmp, target))
         return tmp
 
@@ -115,11 +116,7 @@ class Outputs:
 
     def tmp_path(self, target: Path) -> Path:
         """A temporary path for a writer that needs a file name (npz, png, ...)."""
-        tmp = self._tmp(target)
-        # keep the suffix so writers that add or check extensions behave
-        alt = tmp.with_name(tmp.name + target.suffix)
-        self._pending[-1] = (alt, target)
-        return alt
+        return self._tmp(target)
 
     def commit(self) -> None:
         """Rename every staged file into place."""
@@ -189,7 +186,8 @@ def run_stage(name: str, body: Callable[[DictConfig, Outputs], None]) -> None:
         except ConfigError as exc:
             print(f"{name}: error: {exc}", file=sys.stderr)
             raise SystemExit(2) from None
-        _execute(name, body, _validated(cfg))
+        OmegaConf.set_readonly(cfg, True)  # load_params has merged it into the schema
+        _execute(name, body, cfg)
         return
 
     import hydra

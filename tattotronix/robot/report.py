@@ -78,10 +78,7 @@ def zero_pose_report(d: RobotDescription, urdf: Path, mjcf: Path,
     """
     pin = PinocchioArm(urdf, d.gravity)
     q0 = np.zeros(len(d.joints))
-    import pinocchio
-
-    pinocchio.framesForwardKinematics(pin.model, pin.data, q0)
-    frames = pin.frames(q0)
+    frames = pin.frames(q0)  # also leaves every frame placement in pin.data.oMf
     highest = -np.inf
     for link in d.links:
         placement = pin.data.oMf[pin.model.getFrameId(link)]
