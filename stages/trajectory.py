@@ -14,16 +14,10 @@ import logging
 from omegaconf import DictConfig, OmegaConf
 
 from tattotronix.art.artwork import artwork_name
-from tattotronix.kinematics import Chain
+from tattotronix.pipeline import trajectory_from_path
 from tattotronix.robot.description import build_description
 from tattotronix.stage import Outputs, code_version, run_stage
-from tattotronix.trajectory import (
-    JointLimits,
-    JointPath,
-    TrajectoryParams,
-    plan_trajectory,
-    provenance_json,
-)
+from tattotronix.trajectory import JointPath, provenance_json
 
 log = logging.getLogger("tattotronix.trajectory")
 
@@ -34,13 +28,7 @@ def main(cfg: DictConfig, out: Outputs) -> None:
     src = out.require(out.path("ik", f"{name}.npz"), "ik")
     desc = build_description(cfg.robot)
     urdf = out.require(out.path("robot", f"{desc.name}.urdf"), "robot")
-    params = TrajectoryParams.from_config(cfg)
-    limits = JointLimits.from_description(desc, params.accel_rad_s2)
-    ik = cfg.ik
-    traj = plan_trajectory(
-        JointPath.from_npz(src), Chain.from_description(desc), limits, params,
-        ik={"needle_axis": list(ik.needle_axis), "damping": ik.damping,
-            "max_iter": ik.max_iter, "tol": ik.tol, "anchor_spacing_m": ik.anchor_spacing_m})
+    traj = trajectory_from_path(cfg, JointPath.from_npz(src), desc)
     config = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
     assert isinstance(config, dict)
     prov = provenance_json({str(k): v for k, v in config.items()},

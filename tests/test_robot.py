@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from tattotronix.config.params import compose
+from tattotronix.control.dynamics import effective_inertia
 from tattotronix.robot.description import RobotDescription, build_description
 from tattotronix.robot.loaders import MujocoArm, PinocchioArm, PybulletArm
-from tattotronix.robot.report import effective_inertia, zero_pose_report
+from tattotronix.robot.report import zero_pose_report
 from tattotronix.robot.urdf import to_urdf
 from tattotronix.stage import TattotronixError
 

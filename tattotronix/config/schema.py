@@ -20,9 +20,12 @@ from omegaconf import MISSING
 
 __all__ = [
     "ArtworkConfig",
+    "Backend",
     "BenchConfig",
     "BoxInertial",
     "Config",
+    "ControllerConfig",
+    "DrawConfig",
     "FrameConfig",
     "IkConfig",
     "InertialConfig",
@@ -34,9 +37,11 @@ __all__ = [
     "PanelConfig",
     "PathsConfig",
     "PenConfig",
+    "PlantConfig",
     "RobotConfig",
     "ServoConfig",
     "ServoMountConfig",
+    "Structure",
     "StudyConfig",
     "Tool",
     "ToolpathConfig",
@@ -252,6 +257,65 @@ class TrajectoryConfig:
     max_step_mm: float = 0.5  # longer segments (travel, lifts) get points on the tip line
 
 
+class Structure(Enum):
+    """Controller structure (reference section 5.2).
+
+    ``pid``: no feedforward; ``pid_g``: + gravity G(q) at the measured q; ``pid_g_v``: +
+    velocity feedforward (the derivative acts on the error, qd_r - qd);
+    ``computed_torque``: + M(q) qdd_r + C(q, qd) qd as well.
+    """
+
+    pid = "pid"
+    pid_g = "pid_g"
+    pid_g_v = "pid_g_v"
+    computed_torque = "computed_torque"
+
+
+class Backend(Enum):
+    """Which plant ``draw.py`` runs on."""
+
+    mujoco = "mujoco"
+    pybullet = "pybullet"
+    model = "model"
+
+
+@dataclass
+class ControllerConfig:
+    """The joint controller shared by every plant (reference sections 5.2 and 5.3).
+
+    PID by pole placement on the effective inertia J_eff at ``tune_q`` (all three poles
+    at -wn): Kp = 3 J wn^2, Kd = 3 J wn, Ki = J wn^3.
+    """
+
+    structure: Structure = Structure.pid_g_v
+    wn: float = 160.0  # rad/s, one bandwidth for every joint
+    rate_hz: float = 1000.0  # the loop runs at this rate, zero-order hold between ticks
+    torque_limit_nm: float | None = None  # null: each joint's effort limit (20 N m)
+    tune_q: list[float] | None = None  # rad; null: the reference pose mid-way through the run
+
+
+@dataclass
+class PlantConfig:
+    """The simulated arm, whichever backend runs it."""
+
+    dt_s: float = 0.001  # integration step (semi-implicit Euler in every backend)
+    damping: float = 0.0  # viscous joint friction, N m s/rad (none unless configured)
+    joint_limits: bool = False  # enforce the joint range (the model plant clamps)
+    contacts: bool = False  # arm-bench contact (MuJoCo, PyBullet); the panel never resists
+    abort_error_rad: float = 1.0  # a joint this far from its reference: the run diverged
+
+
+@dataclass
+class DrawConfig:
+    """Error bookkeeping and the ink image of a simulated drawing (reference section 5.5)."""
+
+    sample_s: float = 0.02  # tracking error sampled every 20 ms
+    settle_periods: float = 4.0  # "settled" excludes settle_periods / wn after each entry
+    needle_mm: float = 0.3  # ink line width
+    ink_res_mm: float = 0.05  # ink raster pixel
+    progress: bool = True  # a progress bar with simulated time and real-time factor
+
+
 @dataclass
 class KinematicsStudyConfig:
     """The kinematics study (reference section 3.4). Placements pair widths[i] with offsets[i]."""
@@ -292,7 +356,14 @@ class Config:
     ik: IkConfig = field(default_factory=IkConfig)
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
     study: StudyConfig = field(default_factory=StudyConfig)
+    controller: ControllerConfig = field(default_factory=ControllerConfig)
+    plant: PlantConfig = field(default_factory=PlantConfig)
+    draw: DrawConfig = field(default_factory=DrawConfig)
     speed: float = 1.0  # rescales the motion: 2 draws twice as fast (marking at 2x feed)
+    backend: Backend = Backend.mujoco  # draw.py: the plant
+    art: str | None = None  # draw.py: a stored (or built-in) drawing by name
+    window: Any = None  # draw.py: null (whole drawing), [start_s, length_s] or "busiest"
+    viewer: bool = False  # draw.py: watch the run where a display exists
 
 
 SCHEMAS: dict[str, Any] = {
@@ -303,6 +374,9 @@ SCHEMAS: dict[str, Any] = {
     "ik": IkConfig,
     "trajectory": TrajectoryConfig,
     "study": StudyConfig,
+    "controller": ControllerConfig,
+    "plant": PlantConfig,
+    "draw": DrawConfig,
 }
 
 

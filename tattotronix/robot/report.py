@@ -10,12 +10,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tattotronix.control.dynamics import effective_inertia
 from tattotronix.robot.description import Geometry, RobotDescription
 from tattotronix.robot.loaders import MujocoArm, PinocchioArm, PybulletArm
 from tattotronix.robot.mjcf import to_mjcf
 from tattotronix.robot.urdf import to_urdf
 
-__all__ = ["RobotModels", "effective_inertia", "generate", "geometry_points", "zero_pose_report"]
+__all__ = ["RobotModels", "generate", "geometry_points", "zero_pose_report"]
 
 
 @dataclass(frozen=True)
@@ -25,11 +26,6 @@ class RobotModels:
     urdf: str
     mjcf: str
     report: dict[str, Any]
-
-
-def effective_inertia(mass_matrix: NDArray[np.float64]) -> NDArray[np.float64]:
-    """J_eff,i = 1 / (M^-1)_ii: the inertia joint i sees with the others free (kg m^2)."""
-    return 1.0 / np.diag(np.linalg.inv(mass_matrix))
 
 
 def geometry_points(g: Geometry) -> NDArray[np.float64]:

@@ -1,0 +1,27 @@
+"""Stage `draw` (and DVC's `simulate`): play a drawing on a plant, closed loop.
+
+    python stages/draw.py backend=mujoco|pybullet|model art=NAME [speed=S]
+        [controller.wn=160 controller.rate_hz=1000 controller.structure=pid_g_v]
+        [window=[start_s,length_s] | window=busiest] [viewer=true]
+    python stages/draw.py artwork.source=PATH ...     # plans the drawing first, in memory
+
+Writes data/runs/<name>-<backend>/{log.npz, ink.png, ink_vs_plan.png} and
+data/metrics/runs/<name>-<backend>.json (tracking errors as reference section 5.5
+defines them, peak torque, real-time factor, ink IoU against the plan).
+"""
+
+from __future__ import annotations
+
+from omegaconf import DictConfig
+
+from tattotronix.control.drawing import draw_simulated
+from tattotronix.stage import Outputs, run_stage
+
+
+def main(cfg: DictConfig, out: Outputs) -> None:
+    """Draw on the configured backend."""
+    draw_simulated(cfg, out)
+
+
+if __name__ == "__main__":
+    run_stage("draw", main)

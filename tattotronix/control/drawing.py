@@ -1,0 +1,295 @@
+"""``draw.py`` on a simulated plant: pick the drawing, run it closed loop, score it.
+
+What is played:
+
+* ``art=NAME`` (or the default artwork's name): the stored ``data/trajectories/NAME.npz``.
+  If it was planned at another ``speed`` (or other trajectory settings), it is re-timed
+  here from ``data/ik/NAME.npz``; a built-in artwork with no stored files is planned here.
+* ``artwork.source=PATH``: the file is planned here, in memory (every stage).
+
+What is written (design section 8): ``data/runs/<name>-<backend>/log.npz`` (the sampled
+run), ``.../ink.png`` (what the simulated needle drew), ``.../ink_vs_plan.png`` (both
+inks, coloured by agreement) and ``data/metrics/runs/<name>-<backend>.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from omegaconf import DictConfig, OmegaConf
+
+from tattotronix.art.artwork import BUILTINS, artwork_name
+from tattotronix.control.analysis import loop_report
+from tattotronix.control.controller import Controller, Gains
+from tattotronix.control.dynamics import Dynamics
+from tattotronix.control.ink import compare_ink, ink_grid, rasterise_ink
+from tattotronix.control.reference import reference_at_ticks, resolve_window
+from tattotronix.control.simulate import Run, simulate
+from tattotronix.control.tracking import tracking_errors
+from tattotronix.kinematics import Chain
+from tattotronix.plants import PlantSettings, make_plant
+from tattotronix.robot.description import RobotDescription, build_description
+from tattotronix.stage import Outputs, TattotronixError, code_version
+from tattotronix.trajectory import JointPath, load_trajectory, provenance_json
+
+__all__ = ["Drawing", "draw_simulated", "resolve_drawing", "available_drawings"]
+
+log = logging.getLogger("tattotronix.draw")
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class Drawing:
+    """A timed drawing to play.
+
+    Attributes:
+        name: names the outputs.
+        t, q, qd: point times (s), angles (rad), rates (rad/s).
+        kind: point kinds (0 travel, 1 mark, 2 approach).
+        origin: ``stored``, ``retimed`` or ``planned``.
+        inputs: files it came from (role -> path), for the provenance.
+    """
+
+    name: str
+    t: Array
+    q: Array
+    qd: Array
+    kind: NDArray[np.int8]
+    origin: str
+    inputs: dict[str, Path] = field(default_factory=dict)
+
+
+def available_drawings(data: Path) -> list[str]:
+    """Stored trajectories and built-in artworks, by name."""
+    stored = sorted(p.stem for p in (data / "trajectories").glob("*.npz"))
+    return stored + [b for b in BUILTINS if b not in stored]
+
+
+def _plan_settings(cfg: Any) -> dict[str, Any]:
+    """The settings a stored trajectory must share with this run to be played as is."""
+    c = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True) if isinstance(
+        cfg, DictConfig) else cfg
+    assert isinstance(c, dict)
+    return {"speed": float(c["speed"]), "trajectory": c["trajectory"],
+            "feed_mark_mm_s": float(c["toolpath"]["feed_mark_mm_s"]),
+            "pitch_mm": float(c["toolpath"]["pitch_mm"])}
+
+
+def resolve_drawing(cfg: Any, data: Path, desc: RobotDescription) -> Drawing:
+    """Find or plan the drawing ``cfg`` asks for (see the module docstring).
+
+    Raises:
+        TattotronixError: an unknown ``art`` (the message lists those available), or
+            whatever planning refuses.
+    """
+    from tattotronix.pipeline import plan_drawing, trajectory_from_path
+
+    source = cfg.artwork.source
+    art = cfg.art
+    if art is None and source is not None and str(source) not in BUILTINS:
+        name = artwork_name(cfg.artwork)
+        traj = plan_drawing(cfg, source, name, desc)
+        return Drawing(name, traj.t, traj.q, traj.qd, traj.kind, "planned",
+                       {"artwork": Path(str(source))})
+    name = str(art) if art is not None else artwork_name(cfg.artwork)
+    stored = data / "trajectories" / f"{name}.npz"
+    ik_file = data / "ik" / f"{name}.npz"
+    if stored.exists():
+        st = load_trajectory(stored)
+        want = _plan_settings(cfg)
+        have = _plan_settings(st.provenance.get("config", {})) if "config" in \
+            st.provenance else None
+        if have == want:
+            return Drawing(name, st.t, st.q, st.qd, st.kind, "stored", {"trajectory": stored})
+        diff = sorted(k for k in want if have is None or have.get(k) != want[k])
+        log.info("draw %s: the stored trajectory was planned with other %s: re-timing",
+                 name, ", ".join(diff))
+    if ik_file.exists():
+        traj = trajectory_from_path(cfg, JointPath.from_npz(ik_file), desc)
+        return Drawing(name, traj.t, traj.q, traj.qd, traj.kind, "retimed", {"ik": ik_file})
+    if name in BUILTINS:
+        traj = plan_drawing(cfg, name, name, desc)
+        return Drawing(name, traj.t, traj.q, traj.qd, traj.kind, "planned", {})
+    raise TattotronixError(
+        f"no drawing named '{name}': available are {', '.join(available_drawings(data))} "
+        "(or give artwork.source=PATH to plan a new one)")
+
+
+def _finite(obj: Any) -> Any:
+    """Replace non-finite floats by None, recursively (metrics never hold NaN)."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_finite(v) for v in obj]
+    if isinstance(obj, np.floating | np.integer):
+        return _finite(obj.item())
+    return obj
+
+
+class _Progress:
+    """tqdm bar over simulated seconds, showing the real-time factor."""
+
+    def __init__(self, total_s: float, label: str, enabled: bool):
+        self.bar = None
+        if enabled:
+            from tqdm import tqdm
+
+            self.bar = tqdm(total=round(total_s, 2), unit="s", desc=label, leave=True,
+                            bar_format="{desc}: {n:.1f}/{total:.1f} s simulated "
+                                       "[{elapsed}<{remaining}{postfix}]")
+        self.done = 0.0
+
+    def __call__(self, sim_s: float, wall_s: float) -> None:
+        if self.bar is None:
+            return
+        self.bar.update(round(sim_s - self.done, 2))
+        self.done = sim_s
+        self.bar.set_postfix_str(f"{sim_s / max(wall_s, 1e-9):.0f}x real time", refresh=False)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def _ink_images(sim: NDArray[np.bool_], plan: NDArray[np.bool_]) -> tuple[Any, Any]:
+    """(ink, comparison) images: black ink on white; both grey-black, plan only blue,
+    simulation only red."""
+    from PIL import Image
+
+    ink = Image.fromarray(np.where(sim, 0, 255).astype(np.uint8), mode="L")
+    rgb = np.full(sim.shape + (3,), 255, dtype=np.uint8)
+    rgb[sim & plan] = (40, 40, 40)
+    rgb[plan & ~sim] = (30, 90, 230)
+    rgb[sim & ~plan] = (220, 30, 30)
+    return ink, Image.fromarray(rgb, mode="RGB")
+
+
+def draw_simulated(cfg: Any, out: Outputs) -> dict[str, Any]:
+    """Run the configured drawing on the configured simulated backend; write its outputs.
+
+    Returns:
+        The run metrics (also written to ``data/metrics/runs/<name>-<backend>.json``).
+    """
+    backend = str(getattr(cfg.backend, "name", cfg.backend))
+    desc = build_description(cfg.robot)
+    urdf = out.require(out.path("robot", f"{desc.name}.urdf"), "robot")
+    mjcf = out.require(out.path("robot", f"{desc.name}.xml"), "robot")
+    drawing = resolve_drawing(cfg, out.data, desc)
+    start, end = resolve_window(cfg.window, drawing.t, drawing.kind)
+    ctl = cfg.controller
+    rate = float(ctl.rate_hz)
+    if not (math.isfinite(rate) and rate > 0):
+        raise TattotronixError(f"controller.rate_hz={rate}: give a positive rate in Hz")
+    ref = reference_at_ticks(drawing.t, drawing.q, drawing.qd, 1.0 / rate, start, end)
+    dyn = Dynamics(urdf, desc.gravity)
+    tune_q = np.asarray(ctl.tune_q if ctl.tune_q is not None else ref.middle_pose(),
+                        dtype=np.float64)
+    if tune_q.shape != (dyn.n,):
+        raise TattotronixError(f"controller.tune_q has {tune_q.size} values: give {dyn.n} "
+                               "joint angles in rad, or null")
+    gains = Gains.tuned_at(dyn, tune_q, float(ctl.wn))
+    effort = np.array([j.effort for j in desc.joints])
+    limit = effort if ctl.torque_limit_nm is None else float(ctl.torque_limit_nm)
+    controller = Controller(dyn, gains, ctl.structure, rate, limit)
+    settings = PlantSettings.from_config(cfg.plant, desc.gravity, desc.tip_frame)
+    from tattotronix.control.simulate import substeps_per_tick
+
+    sub = substeps_per_tick(controller.period_s, settings.dt_s)
+    analysis = loop_report(dyn.mass_matrix(tune_q), gains.j_eff, gains.wn, rate, sub)
+    sample_every = max(1, round(float(cfg.draw.sample_s) * rate))
+    label = f"{drawing.name} on {backend}"
+    log.info("draw %s: %s drawing, %.1f..%.1f s, %s at wn %g rad/s, %g Hz (wn T %.3f, "
+             "sampled boundary %.3f)", label, drawing.origin, start, end,
+             controller.structure.name, gains.wn, rate, analysis["wnT"],
+             analysis["sampled_boundary_numeric_wnT"])
+    bar = _Progress(ref.duration_s, label, bool(cfg.draw.progress))
+    try:
+        with make_plant(backend, settings, urdf=urdf, mjcf=mjcf,
+                        joint_names=desc.joint_names, lower=desc.lower, upper=desc.upper,
+                        viewer=bool(cfg.viewer)) as plant:
+            run = simulate(plant, controller, ref, sample_every=sample_every,
+                           abort_error_rad=float(cfg.plant.abort_error_rad), progress=bar,
+                           viewer=bool(cfg.viewer))
+    finally:
+        bar.close()
+    metrics = _score_and_write(cfg, out, drawing, run, controller, analysis, desc,
+                               sample_every, backend, (start, end))
+    return metrics
+
+
+def _score_and_write(cfg: Any, out: Outputs, drawing: Drawing, run: Run,
+                     controller: Controller, analysis: dict[str, Any],
+                     desc: RobotDescription, sample_every: int, backend: str,
+                     window: tuple[float, float]) -> dict[str, Any]:
+    chain = Chain.from_description(desc)
+    k = len(run.t)
+    tip, _ = chain.fk(run.q) if k else (np.zeros((0, 3)), None)
+    tip_ref, _ = chain.fk(run.ref.q[:k]) if k else (np.zeros((0, 3)), None)
+    idx = np.arange(0, k, run.sample_every)
+    err = tracking_errors(run.t[idx], tip[idx], tip_ref[idx], drawing.t, drawing.kind,
+                          controller.gains.wn, float(cfg.draw.settle_periods))
+    origin = np.asarray(cfg.toolpath.panel_origin, dtype=np.float64)
+    res = float(cfg.draw.ink_res_mm)
+    grid = ink_grid([tip, tip_ref], origin, res)
+    sim_ink = rasterise_ink(tip, origin, grid, float(cfg.draw.needle_mm))
+    plan_ink = rasterise_ink(tip_ref, origin, grid, float(cfg.draw.needle_mm))
+    ink = compare_ink(sim_ink, plan_ink, res)
+
+    run_dir = out.path("runs", f"{drawing.name}-{backend}")
+    ink_img, cmp_img = _ink_images(sim_ink, plan_ink)
+    dpi = 25.4 / res
+    ink_img.save(out.tmp_path(run_dir / "ink.png"), format="PNG", dpi=(dpi, dpi))
+    cmp_img.save(out.tmp_path(run_dir / "ink_vs_plan.png"), format="PNG", dpi=(dpi, dpi))
+    config = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True) if isinstance(
+        cfg, DictConfig) else dict(cfg)
+    assert isinstance(config, dict)
+    prov = provenance_json({str(a): b for a, b in config.items()}, drawing.inputs,
+                           code_version())
+    np.savez_compressed(
+        out.tmp_path(run_dir / "log.npz"),
+        joints=np.array(desc.joint_names), t=run.t[idx], q=run.q[idx], qd=run.qd_samples,
+        tau=run.tau[idx], q_ref=run.ref.q[idx], qd_ref=run.ref.qd[idx], tip=tip[idx],
+        tip_ref=tip_ref[idx], error_m=err.error_m, down=err.down, settled=err.settled,
+        provenance=np.array(prov))
+    metrics: dict[str, Any] = {
+        "name": drawing.name, "backend": backend, "drawing": drawing.origin,
+        "window_s": [window[0], window[1] - window[0]],
+        **err.metrics(),
+        "peak_torque_nm": run.peak_torque_nm,
+        "realtime_factor": run.realtime_factor, "wall_s": run.wall_s, "sim_s": run.sim_s,
+        "verdict": run.verdict, "reason": run.reason, "completed": run.completed,
+        **ink.metrics(),
+        "controller": controller.summary(),
+        "plant": {"dt_s": float(cfg.plant.dt_s), "substeps": run.substeps,
+                  "damping": float(cfg.plant.damping),
+                  "joint_limits": bool(cfg.plant.joint_limits),
+                  "contacts": bool(cfg.plant.contacts)},
+        "loop": analysis,
+        "sample_s": sample_every * controller.period_s,
+    }
+    metrics = _finite(metrics)
+    out.write_json(out.path("metrics", "runs", f"{drawing.name}-{backend}.json"), metrics)
+    log.info("draw %s on %s: %s; settled %s / %s um (mean / max), marking max %s um, "
+             "peak %.3f N m, ink IoU %.3f, %.0fx real time (%.1f s)", drawing.name, backend,
+             run.verdict, _fmt(metrics["settled_mean_um"]), _fmt(metrics["settled_max_um"]),
+             _fmt(metrics["marking_max_um"]), run.peak_torque_nm, ink.iou,
+             run.realtime_factor, run.wall_s)
+    return metrics
+
+
+def _fmt(v: float | None) -> str:
+    return "-" if v is None else f"{v:.2f}"
+
+
+def metrics_json(metrics: dict[str, Any]) -> str:
+    """The metrics as the JSON text written."""
+    return json.dumps(metrics, indent=2, sort_keys=True)

@@ -1,0 +1,69 @@
+"""The drawing pipeline in one process: artwork -> mask -> toolpath -> IK -> trajectory.
+
+The DVC stages run these steps one file at a time; ``draw.py artwork.source=PATH`` (or a
+``speed`` the stored trajectory was not planned at) runs them here, in memory, with the
+same library calls and the same settings.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from tattotronix.art.artwork import load_artwork
+from tattotronix.art.mask import make_mask
+from tattotronix.kinematics import Chain, solve_path
+from tattotronix.path.params import ToolpathParams
+from tattotronix.path.plan import plan_toolpath
+from tattotronix.robot.description import RobotDescription
+from tattotronix.trajectory import JointLimits, JointPath, Trajectory, TrajectoryParams
+from tattotronix.trajectory import plan_trajectory as _plan_trajectory
+
+__all__ = ["ik_settings", "plan_drawing", "trajectory_from_path"]
+
+log = logging.getLogger("tattotronix.pipeline")
+
+
+def ik_settings(ik: Any) -> dict[str, Any]:
+    """The IK keyword arguments of the ``ik`` config group (for densify's IK)."""
+    return {"needle_axis": list(ik.needle_axis), "damping": float(ik.damping),
+            "max_iter": int(ik.max_iter), "tol": float(ik.tol),
+            "anchor_spacing_m": float(ik.anchor_spacing_m)}
+
+
+def trajectory_from_path(cfg: Any, path: JointPath, desc: RobotDescription) -> Trajectory:
+    """Time an IK path with the config's feeds, speed and limits (the trajectory stage)."""
+    params = TrajectoryParams.from_config(cfg)
+    limits = JointLimits.from_description(desc, params.accel_rad_s2)
+    return _plan_trajectory(path, Chain.from_description(desc), limits, params,
+                            ik=ik_settings(cfg.ik))
+
+
+def plan_drawing(cfg: Any, source: str | Path | None, name: str,
+                 desc: RobotDescription) -> Trajectory:
+    """Plan a drawing from its artwork file, in memory (every stage up to the trajectory).
+
+    Raises:
+        TattotronixError: whatever a stage would refuse (unreadable art, no ink, a drawing
+            off the panel, unreachable points, a speed too high).
+    """
+    m = cfg.mask
+    art = load_artwork(source, m.width_mm, m.res_mm, cfg.artwork.max_pixels, name)
+    grey = art.as_uint8().astype(np.float64)  # what the artwork stage's PNG holds
+    mask, _ = make_mask(grey, m.res_mm, m.method, m.min_region_mm2,
+                        edge_sigma_px=m.edge_sigma_px, edge_k=m.edge_k)
+    tp = plan_toolpath(mask, ToolpathParams.from_config(cfg.toolpath, m, cfg.robot.panel))
+    chain = Chain.from_description(desc)
+    ik = cfg.ik
+    res = solve_path(chain, tp.xyz_m, needle_axis=list(ik.needle_axis), seed=list(ik.seed),
+                     damping=ik.damping, max_iter=ik.max_iter, tol=ik.tol,
+                     anchor_spacing_m=ik.anchor_spacing_m)
+    res.raise_if_failed(uvz_mm=tp.path.uvz_mm)
+    tcp, _ = chain.fk(res.q)
+    path = JointPath.from_arrays(desc.joint_names, res.q, tcp, tp.path.kind, tp.path.uvz_mm)
+    traj = trajectory_from_path(cfg, path, desc)
+    log.info("planned %s in memory: %d points, %.1f s", name, len(traj.t), traj.duration_s)
+    return traj

@@ -1,0 +1,165 @@
+"""The plant interface and the factory that builds a backend from the generated models."""
+
+from __future__ import annotations
+
+import os
+import sys
+from abc import ABC, abstractmethod
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from types import TracebackType
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from tattotronix.stage import TattotronixError
+
+__all__ = ["Plant", "PlantSettings", "has_display", "make_plant"]
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class PlantSettings:
+    """What every backend is told (the ``plant`` config group, SI units).
+
+    Attributes:
+        dt_s: integration step, s.
+        damping: viscous joint friction, N m s/rad.
+        joint_limits: enforce the joint range.
+        contacts: arm-bench contact (MuJoCo and PyBullet only).
+        gravity: magnitude along -z, m/s^2.
+        tip_frame: the tip's frame name (``tattoo_tcp``).
+    """
+
+    dt_s: float = 0.001
+    damping: float = 0.0
+    joint_limits: bool = False
+    contacts: bool = False
+    gravity: float = 9.80665
+    tip_frame: str = "tattoo_tcp"
+
+    @classmethod
+    def from_config(cls, plant: Any, gravity: float, tip_frame: str) -> PlantSettings:
+        """From the ``plant`` config group and the robot description's gravity and tip."""
+        s = cls(dt_s=float(plant.dt_s), damping=float(plant.damping),
+                joint_limits=bool(plant.joint_limits), contacts=bool(plant.contacts),
+                gravity=float(gravity), tip_frame=tip_frame)
+        if not (np.isfinite(s.dt_s) and s.dt_s > 0):
+            raise TattotronixError(f"plant.dt_s={s.dt_s}: give a positive step in seconds")
+        if not (np.isfinite(s.damping) and s.damping >= 0):
+            raise TattotronixError(f"plant.damping={s.damping}: give a damping >= 0 N m s/rad")
+        return s
+
+
+class Plant(ABC):
+    """A simulated arm. Use as a context manager (or call :meth:`close`).
+
+    Attributes:
+        backend: ``model``, ``mujoco`` or ``pybullet``.
+        settings: the plant settings.
+        n: number of joints.
+    """
+
+    backend: str = ""
+
+    def __init__(self, settings: PlantSettings, n: int):
+        self.settings = settings
+        self.dt = settings.dt_s
+        self.n = n
+
+    @property
+    @abstractmethod
+    def q(self) -> Array:
+        """Joint angles now, rad: a float64 array the plant updates in place (read it,
+        do not write it)."""
+
+    @property
+    @abstractmethod
+    def qd(self) -> Array:
+        """Joint rates now, rad/s (updated in place, like :attr:`q`)."""
+
+    @abstractmethod
+    def reset(self, q: ArrayLike, qd: ArrayLike | None = None) -> None:
+        """Put the arm at ``q`` (rad) moving at ``qd`` (rad/s, default at rest), time 0."""
+
+    @abstractmethod
+    def apply(self, tau: Sequence[float]) -> None:
+        """Hold the joint torques ``tau`` (N m) until the next call."""
+
+    @abstractmethod
+    def step(self, n: int = 1) -> None:
+        """Advance ``n`` integration steps of ``dt`` with the held torque."""
+
+    @abstractmethod
+    def tip_pose(self) -> tuple[Array, Array]:
+        """The tip's position (3,) m and rotation (3, 3) in the arm frame, now."""
+
+    def healthy(self) -> bool:
+        """False once the state is not finite (or the engine reported instability)."""
+        return bool(np.all(np.isfinite(self.q)) and np.all(np.isfinite(self.qd)))
+
+    def sync_viewer(self) -> None:  # noqa: B027 - optional hook
+        """Refresh the viewer, if one is open."""
+
+    def close(self) -> None:  # noqa: B027 - optional hook
+        """Release the engine."""
+
+    def __enter__(self) -> Plant:
+        return self
+
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
+                 tb: TracebackType | None) -> None:
+        self.close()
+
+
+def has_display() -> bool:
+    """Whether a window can be opened here."""
+    if sys.platform in ("darwin", "win32"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+def make_plant(backend: str, settings: PlantSettings, *, urdf: Path, mjcf: Path,
+               joint_names: Sequence[str], lower: ArrayLike, upper: ArrayLike,
+               viewer: bool = False) -> Plant:
+    """Build a plant from the generated models.
+
+    Args:
+        backend: ``model``, ``mujoco`` or ``pybullet``.
+        settings: the plant settings.
+        urdf, mjcf: the generated models (``data/robot/<name>.urdf`` / ``.xml``).
+        joint_names: the joints, base outward (checked against each model).
+        lower, upper: joint limits, rad (the model plant's clamp).
+        viewer: open the engine's viewer (needs a display; MuJoCo and PyBullet).
+
+    Raises:
+        TattotronixError: an unknown backend, or a setting the backend cannot honour.
+    """
+    from tattotronix.plants import BACKENDS
+
+    name = str(getattr(backend, "name", backend))
+    if name not in BACKENDS:
+        raise TattotronixError(f"unknown backend '{name}': use one of {', '.join(BACKENDS)} "
+                               "(the real arm is backend=arm)")
+    plant: Plant
+    if name == "model":
+        from tattotronix.plants.model import ModelPlant
+
+        plant = ModelPlant(urdf, settings, lower=lower, upper=upper)
+    elif name == "mujoco":
+        from tattotronix.plants.mujoco_plant import MujocoPlant
+
+        plant = MujocoPlant(mjcf, settings, viewer=viewer)
+    else:
+        from tattotronix.plants.pybullet_plant import PybulletPlant
+
+        plant = PybulletPlant(urdf, settings, viewer=viewer)
+    got = tuple(getattr(plant, "joint_names", ()))
+    if got != tuple(joint_names):
+        plant.close()
+        raise TattotronixError(f"the {name} model has joints {got}, the description "
+                               f"{tuple(joint_names)}: re-run the 'robot' stage")
+    return plant
