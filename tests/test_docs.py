@@ -62,3 +62,13 @@ def test_readme_trajectory_table_equals_the_trajectory_metrics() -> None:
     assert _row("fastest speed") == [round(m["fastest_speed"], 2)]
     k = json.loads((ROOT / "data" / "metrics" / "kinematics" / "emblem.json").read_text())
     assert f"{k['reachability']['reachable_pct']:.3f} %" in README
+
+
+def test_readme_simulation_table_equals_the_run_metrics() -> None:
+    m = json.loads((ROOT / "data" / "metrics" / "runs" / "emblem-mujoco.json").read_text())
+    assert _row("settled mean / max") == [round(m["settled_mean_um"], 2),
+                                          round(m["settled_max_um"], 1)]
+    assert _row("marking max") == [round(m["marking_max_um"], 1)]
+    assert _row("travel mean") == [round(m["travel_mean_um"], 1)]
+    assert _row("peak torque") == [round(m["peak_torque_nm"], 3)]
+    assert _row("ink IoU against the plan") == [round(m["ink_iou"], 3)]

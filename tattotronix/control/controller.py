@@ -136,6 +136,8 @@ class Controller:
         self._kd = gains.kd.tolist()
         self._ki = gains.ki.tolist()
         self._lim = self.torque_limit.tolist()
+        self._kq = (gains.kp + gains.ki * self.period_s).tolist()
+        self._zeros = (0.0,) * self.n
         self._integral = [0.0] * self.n
         # per-tick constants, filled by bind()
         self._r: list[list[float]] = []
@@ -152,9 +154,10 @@ class Controller:
             raise TattotronixError(f"reference sampled every {ref.period_s} s, the controller "
                                    f"runs every {self.period_s} s")
         g = self.gains
-        c = g.kp * ref.q + (g.kd * ref.qd if self.derivative_on_error else 0.0)
+        r = ref.q * self.period_s  # q_r T: the integral's reference part
+        c = g.kp * ref.q + g.ki * r + (g.kd * ref.qd if self.derivative_on_error else 0.0)
         self._ref = ref
-        self._r = (ref.q * self.period_s).tolist()  # q_r T: the integral's reference part
+        self._r = r.tolist()
         self._c = c.tolist()
         self.reset()
 
@@ -176,24 +179,23 @@ class Controller:
         """
         ql = q.tolist()
         vl = qd.tolist()
-        period = self.period_s
-        self._integral = integral = [i + r - period * x for i, r, x in
-                                     zip(self._integral, self._r[k], ql, strict=True)]
         s = self.structure
         if s is Structure.pid:
-            ff: Sequence[float] = (0.0,) * self.n
+            ff: Sequence[float] = self._zeros
         elif s is Structure.computed_torque:
             assert self._ref is not None
             ff = self.dynamics.rnea_view(q, qd, self._ref.qdd[k]).tolist()
         else:
             ff = self.dynamics.gravity_view(q).tolist()
-        out = []
-        for c, kp, x, kd, v, ki, i, f, lim in zip(self._c[k], self._kp, ql, self._kd, vl,
-                                                  self._ki, integral, ff, self._lim,
-                                                  strict=True):
-            tau = c - kp * x - kd * v + ki * i + f
-            out.append(lim if tau > lim else (-lim if tau < -lim else tau))
-        return out
+        # Ki I_new = Ki I_old + Ki T (q_r - q): the q_r part is folded into _c, the q part
+        # into _kq = Kp + Ki T, so one pass gives tau from the old integral
+        period = self.period_s
+        old = self._integral
+        self._integral = [i + r - period * x for i, r, x in zip(old, self._r[k], ql, strict=True)]
+        lim = self._lim
+        out = [c + ki * i - kq * x - kd * v + f for c, ki, i, kq, x, kd, v, f in
+               zip(self._c[k], self._ki, old, self._kq, ql, self._kd, vl, ff, strict=True)]
+        return [m if t > m else (-m if t < -m else t) for t, m in zip(out, lim, strict=True)]
 
     def summary(self) -> dict[str, Any]:
         """JSON-ready description of the controller."""

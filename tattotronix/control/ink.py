@@ -2,10 +2,10 @@
 
 Tip positions (arm frame, m) become panel millimetres (``u = x - x0``, ``v = y - y0``,
 depth ``z - z0`` against the panel origin on its surface); every run of consecutive
-samples below the surface is drawn as a polyline of the needle's width (0.3 mm) on a
-raster of ``res_mm`` pixels. The simulated ink and the planned ink are rasterised alike,
-on the same grid, and compared: IoU, and the worst deviation (the symmetric Hausdorff
-distance between the two inked areas, mm).
+samples below the surface is drawn as a polyline of the needle's width (0.3 mm, to
+within a pixel) on a raster of ``res_mm`` pixels. The simulated ink and the planned ink
+are rasterised alike, on the same grid, and compared: IoU, and the worst deviation (the
+symmetric Hausdorff distance between the two inked areas, mm).
 """
 
 from __future__ import annotations
@@ -72,13 +72,15 @@ def rasterise_ink(tip_m: Array, origin_m: ArrayLike, grid: InkGrid,
     if not below.any():
         return img.astype(bool)
     px = np.rint(grid.to_px(uvz[:, :2]) * (1 << _SHIFT)).astype(np.int32)
-    thick = max(1, int(round(needle_mm / grid.res_mm)))
+    # cv2 inks the pixel centres within thickness/2 of the line, both edges included, so
+    # a band of thickness t covers about t + 1 pixels: t = width/res - 1 (within a pixel)
+    thick = max(1, int(round(needle_mm / grid.res_mm)) - 1)
     edges = np.diff(np.concatenate(([0], below.astype(np.int8), [0])))
     starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
     lines = [px[a:b].reshape(-1, 1, 2) for a, b in zip(starts, stops, strict=True)]
     cv2.polylines(img, lines, isClosed=False, color=1, thickness=thick, lineType=cv2.LINE_8,
                   shift=_SHIFT)
-    radius = max(1, int(round(needle_mm / grid.res_mm / 2)))
+    radius = max(1, int(round(needle_mm / grid.res_mm / 2 - 0.5)))
     for a, b in zip(starts, stops, strict=True):
         if b - a == 1:  # a single sample: a dot
             c = (int(px[a, 0]), int(px[a, 1]))
