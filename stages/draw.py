@@ -4,10 +4,12 @@
         [controller.wn=160 controller.rate_hz=1000 controller.structure=pid_g_v]
         [window=[start_s,length_s] | window=busiest] [viewer=true]
     python stages/draw.py artwork.source=PATH ...     # plans the drawing first, in memory
+    python stages/draw.py backend=arm art=NAME [dry_run=true [realtime=false]] [resume=true]
 
 Writes data/runs/<name>-<backend>/{log.npz, ink.png, ink_vs_plan.png} and
 data/metrics/runs/<name>-<backend>.json (tracking errors as reference section 5.5
-defines them, peak torque, real-time factor, ink IoU against the plan).
+defines them, peak torque, real-time factor, ink IoU against the plan). On the arm:
+data/runs/<name>-arm/{i2c.jsonl (dry run), poses.jsonl} and the arm state file.
 """
 
 from __future__ import annotations
@@ -15,12 +17,16 @@ from __future__ import annotations
 from omegaconf import DictConfig
 
 from tattotronix.control.drawing import draw_simulated
+from tattotronix.hardware.arm import draw_on_arm
 from tattotronix.stage import Outputs, run_stage
 
 
 def main(cfg: DictConfig, out: Outputs) -> None:
     """Draw on the configured backend."""
-    draw_simulated(cfg, out)
+    if cfg.backend.name == "arm":
+        draw_on_arm(cfg, out)
+    else:
+        draw_simulated(cfg, out)
 
 
 if __name__ == "__main__":

@@ -27,6 +27,7 @@ __all__ = [
     "ControllerConfig",
     "DrawConfig",
     "FrameConfig",
+    "HardwareConfig",
     "IkConfig",
     "InertialConfig",
     "JointConfig",
@@ -272,11 +273,12 @@ class Structure(Enum):
 
 
 class Backend(Enum):
-    """Which plant ``draw.py`` runs on."""
+    """Which plant ``draw.py`` runs on (``arm``: the real arm, or its dry run)."""
 
     mujoco = "mujoco"
     pybullet = "pybullet"
     model = "model"
+    arm = "arm"
 
 
 @dataclass
@@ -314,6 +316,24 @@ class DrawConfig:
     needle_mm: float = 0.3  # ink line width
     ink_res_mm: float = 0.05  # ink raster pixel
     progress: bool = True  # a progress bar with simulated time and real-time factor
+
+
+@dataclass
+class HardwareConfig:
+    """The real arm: the PCA9685 board, the servo calibration, and how a drawing is sent.
+
+    ``servos`` is the calibration (board settings, per-joint channels and pulse mapping,
+    the tool channel); it is validated by :mod:`tattotronix.hardware.servos`, which names
+    the joint and key of every problem. ``calibration_file`` replaces it with a per-board
+    file of the same shape.
+    """
+
+    servos: Any = MISSING
+    calibration_file: str | None = None
+    ramp_rad_s: float = 0.25  # the slow move to the start pose (and lifts), fastest joint
+    state_file: str = "arm/state.json"  # under paths.data: last commanded pose, resume point
+    save_every_s: float = 1.0  # the state file is refreshed this often while drawing
+    fail_after_writes: int | None = None  # dry-run fault injection: the bus fails after N
 
 
 @dataclass
@@ -364,6 +384,10 @@ class Config:
     art: str | None = None  # draw.py: a stored (or built-in) drawing by name
     window: Any = None  # draw.py: null (whole drawing), [start_s, length_s] or "busiest"
     viewer: bool = False  # draw.py: watch the run where a display exists
+    hardware: HardwareConfig = field(default_factory=HardwareConfig)
+    dry_run: bool = False  # backend=arm: a recording bus instead of the I2C device
+    resume: bool = False  # backend=arm: continue a paused or failed drawing
+    realtime: bool = True  # backend=arm dry run: stream at the frame rate (false: at once)
 
 
 SCHEMAS: dict[str, Any] = {
@@ -377,6 +401,7 @@ SCHEMAS: dict[str, Any] = {
     "controller": ControllerConfig,
     "plant": PlantConfig,
     "draw": DrawConfig,
+    "hardware": HardwareConfig,
 }
 
 

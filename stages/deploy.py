@@ -1,0 +1,45 @@
+"""Stage `deploy`: compile a trajectory into the servo program (PCA9685 counts per frame).
+
+Reads data/trajectories/<name>.npz and the servo calibration (conf/hardware, or
+hardware.calibration_file); writes data/deploy/<name>.npz (t, q, counts, channels,
+frame_hz, count_us) and data/metrics/deploy/<name>.json: frames, the largest count step
+per channel, the quantisation error per joint (deg) and the tip error it implies.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from omegaconf import DictConfig
+
+from tattotronix.art.artwork import artwork_name
+from tattotronix.hardware.arm import build_program
+from tattotronix.kinematics import Chain
+from tattotronix.robot.description import build_description
+from tattotronix.stage import Outputs, run_stage
+from tattotronix.trajectory import load_trajectory
+
+log = logging.getLogger("tattotronix.deploy")
+
+
+def main(cfg: DictConfig, out: Outputs) -> None:
+    """Compile the program of one artwork and write it with its metrics."""
+    name = artwork_name(cfg.artwork)
+    traj = load_trajectory(out.require(out.path("trajectories", f"{name}.npz"), "trajectory"))
+    desc = build_description(cfg.robot)
+    program, calib = build_program(cfg, desc, traj.t, traj.q, traj.qd)
+    np.savez_compressed(out.tmp_path(out.path("deploy", f"{name}.npz")), t=program.t,
+                        q=program.q, counts=program.counts,
+                        channels=np.array(program.channels), frame_hz=program.frame_hz,
+                        count_us=program.count_us)
+    m = {"name": name, **program.metrics(calib, Chain.from_description(desc))}
+    out.write_json(out.path("metrics", "deploy", f"{name}.json"), m)
+    log.info("deploy %s: %d frames, %.2f us a count; quantisation up to %.3f deg, tip %.2f mm "
+             "worst (%.2f mean)", name, m["frames"], m["count_us"],
+             max(m["quantisation_deg"].values()), m["quantisation_tip_mm_max"],
+             m["quantisation_tip_mm_mean"])
+
+
+if __name__ == "__main__":
+    run_stage("deploy", main)
