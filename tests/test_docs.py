@@ -72,3 +72,12 @@ def test_readme_simulation_table_equals_the_run_metrics() -> None:
     assert _row("travel mean") == [round(m["travel_mean_um"], 1)]
     assert _row("peak torque") == [round(m["peak_torque_nm"], 3)]
     assert _row("ink IoU against the plan") == [round(m["ink_iou"], 3)]
+
+
+def test_readme_servo_program_table_equals_the_deploy_metrics() -> None:
+    m = json.loads((ROOT / "data" / "metrics" / "deploy" / "emblem.json").read_text())
+    assert _row("frames") == [m["frames"]]
+    assert _row("worst quantisation of a joint") == [
+        round(max(m["quantisation_deg"].values()), 3)]
+    assert _row("tip error from quantisation, worst / mean") == [
+        round(m["quantisation_tip_mm_max"], 2), round(m["quantisation_tip_mm_mean"], 2)]
