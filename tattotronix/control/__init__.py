@@ -7,4 +7,6 @@
 * :mod:`~tattotronix.control.simulate`: one closed-loop run on any plant.
 * :mod:`~tattotronix.control.tracking`: the errors of reference section 5.5.
 * :mod:`~tattotronix.control.ink`: what the simulated needle drew, against the plan.
+* :mod:`~tattotronix.control.drawing`: ``draw.py`` on a simulated plant (pick, run, score,
+  write).
 """

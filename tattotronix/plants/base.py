@@ -69,17 +69,19 @@ class Plant(ABC):
         self.settings = settings
         self.dt = settings.dt_s
         self.n = n
+        self._q = np.zeros(n)
+        self._qd = np.zeros(n)
 
     @property
-    @abstractmethod
     def q(self) -> Array:
         """Joint angles now, rad: a float64 array the plant updates in place (read it,
         do not write it)."""
+        return self._q
 
     @property
-    @abstractmethod
     def qd(self) -> Array:
         """Joint rates now, rad/s (updated in place, like :attr:`q`)."""
+        return self._qd
 
     @abstractmethod
     def reset(self, q: ArrayLike, qd: ArrayLike | None = None) -> None:

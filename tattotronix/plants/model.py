@@ -38,19 +38,9 @@ class ModelPlant(Plant):
         super().__init__(settings, int(self.model.nv))
         self._tip = self.model.getFrameId(settings.tip_frame)
         self._pin = pin
-        self._q = np.zeros(self.n)
-        self._qd = np.zeros(self.n)
         self._tau = np.zeros(self.n)
         self._lower = np.asarray(lower, dtype=np.float64)
         self._upper = np.asarray(upper, dtype=np.float64)
-
-    @property
-    def q(self) -> Array:
-        return self._q
-
-    @property
-    def qd(self) -> Array:
-        return self._qd
 
     def reset(self, q: ArrayLike, qd: ArrayLike | None = None) -> None:
         self._q[:] = q

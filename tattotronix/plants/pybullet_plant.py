@@ -68,8 +68,6 @@ class PybulletPlant(Plant):
         if settings.contacts:
             self._add_bench()
         self._tau = [0.0] * self.n
-        self._q = np.zeros(self.n)
-        self._qd = np.zeros(self.n)
         self._t = 0.0
         self._wall0 = 0.0
 
@@ -83,14 +81,6 @@ class PybulletPlant(Plant):
         states = self._p.getJointStates(self.body, self._idx, physicsClientId=self.client)
         self._q[:] = [s[0] for s in states]
         self._qd[:] = [s[1] for s in states]
-
-    @property
-    def q(self) -> Array:
-        return self._q
-
-    @property
-    def qd(self) -> Array:
-        return self._qd
 
     def reset(self, q: ArrayLike, qd: ArrayLike | None = None) -> None:
         p, cid = self._p, self.client
