@@ -14,7 +14,8 @@ import numpy as np
 from omegaconf import DictConfig
 
 from tattotronix.art.artwork import artwork_name
-from tattotronix.kinematics import Chain, PinocchioTip, conditioning, solve_path, verify
+from tattotronix.kinematics import Chain, PinocchioTip, conditioning, verify
+from tattotronix.pipeline import solve_ik
 from tattotronix.robot.description import build_description
 from tattotronix.stage import Outputs, run_stage
 
@@ -36,11 +37,8 @@ def main(cfg: DictConfig, out: Outputs) -> None:
     def progress(done: int, total: int) -> None:
         log.info("ik %s: %d / %d points", name, done, total)
 
-    res = solve_path(chain, path["xyz_m"], needle_axis=list(ik.needle_axis), seed=list(ik.seed),
-                     damping=ik.damping, max_iter=ik.max_iter, tol=ik.tol,
-                     anchor_spacing_m=ik.anchor_spacing_m,
-                     progress=progress if n > 50_000 else None)  # ~0.1 s per 20k points
-    res.raise_if_failed(uvz_mm=path["uvz_mm"])
+    res = solve_ik(chain, path["xyz_m"], path["uvz_mm"], ik,
+                   progress=progress if n > 50_000 else None)  # ~0.1 s per 20k points
     check = verify(PinocchioTip.from_urdf(urdf, desc.tip_frame), res, path["xyz_m"],
                    needle_axis=list(ik.needle_axis), pos_tol_m=ik.verify_pos_tol_m,
                    axis_tol_rad=ik.verify_axis_tol_rad)

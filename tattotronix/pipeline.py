@@ -8,6 +8,7 @@ same library calls and the same settings.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -15,14 +16,14 @@ import numpy as np
 
 from tattotronix.art.artwork import load_artwork
 from tattotronix.art.mask import make_mask
-from tattotronix.kinematics import Chain, solve_path
+from tattotronix.kinematics import Chain, IkResult, solve_path
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.plan import plan_toolpath
 from tattotronix.robot.description import RobotDescription
 from tattotronix.trajectory import JointLimits, JointPath, Trajectory, TrajectoryParams
 from tattotronix.trajectory import plan_trajectory as _plan_trajectory
 
-__all__ = ["ik_settings", "plan_drawing", "trajectory_from_path"]
+__all__ = ["ik_settings", "plan_drawing", "solve_ik", "trajectory_from_path"]
 
 log = logging.getLogger("tattotronix.pipeline")
 
@@ -32,6 +33,20 @@ def ik_settings(ik: Any) -> dict[str, Any]:
     return {"needle_axis": list(ik.needle_axis), "damping": float(ik.damping),
             "max_iter": int(ik.max_iter), "tol": float(ik.tol),
             "anchor_spacing_m": float(ik.anchor_spacing_m)}
+
+
+def solve_ik(chain: Chain, xyz_m: Any, uvz_mm: Any, ik: Any,
+             progress: Callable[[int, int], None] | None = None) -> IkResult:
+    """Whole-path IK with the ``ik`` config group's settings (the ik stage's solve).
+
+    Raises:
+        IkFailure: a point failed (named in panel mm, with its residual and reason).
+    """
+    res = solve_path(chain, xyz_m, needle_axis=list(ik.needle_axis), seed=list(ik.seed),
+                     damping=ik.damping, max_iter=ik.max_iter, tol=ik.tol,
+                     anchor_spacing_m=ik.anchor_spacing_m, progress=progress)
+    res.raise_if_failed(uvz_mm=uvz_mm)
+    return res
 
 
 def trajectory_from_path(cfg: Any, path: JointPath, desc: RobotDescription) -> Trajectory:
@@ -57,11 +72,7 @@ def plan_drawing(cfg: Any, source: str | Path | None, name: str,
                         edge_sigma_px=m.edge_sigma_px, edge_k=m.edge_k)
     tp = plan_toolpath(mask, ToolpathParams.from_config(cfg.toolpath, m, cfg.robot.panel))
     chain = Chain.from_description(desc)
-    ik = cfg.ik
-    res = solve_path(chain, tp.xyz_m, needle_axis=list(ik.needle_axis), seed=list(ik.seed),
-                     damping=ik.damping, max_iter=ik.max_iter, tol=ik.tol,
-                     anchor_spacing_m=ik.anchor_spacing_m)
-    res.raise_if_failed(uvz_mm=tp.path.uvz_mm)
+    res = solve_ik(chain, tp.xyz_m, tp.path.uvz_mm, cfg.ik)
     tcp, _ = chain.fk(res.q)
     path = JointPath.from_arrays(desc.joint_names, res.q, tcp, tp.path.kind, tp.path.uvz_mm)
     traj = trajectory_from_path(cfg, path, desc)

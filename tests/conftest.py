@@ -42,6 +42,32 @@ def desc() -> RobotDescription:
     return build_description(compose().robot)
 
 
+def small_art(path: Path) -> Path:
+    """A 240 x 120 px drawing: a ring, a filled square and a dot (24 mm wide at
+    ``mask.width_mm=24``)."""
+    from PIL import Image, ImageDraw
+
+    im = Image.new("L", (240, 120), 255)
+    d = ImageDraw.Draw(im)
+    d.ellipse((10, 10, 110, 110), outline=0, width=12)
+    d.rectangle((140, 30, 200, 90), fill=0)
+    d.ellipse((215, 55, 227, 67), fill=0)
+    im.save(path)
+    return path
+
+
+@pytest.fixture()
+def draw_data(tmp_path: Path, desc: RobotDescription) -> Path:
+    """A data folder holding the generated models (what the robot stage writes), with
+    the small artwork beside it (``small.png``)."""
+    robot = tmp_path / "data" / "robot"
+    robot.mkdir(parents=True)
+    (robot / f"{desc.name}.urdf").write_text(to_urdf(desc))
+    (robot / f"{desc.name}.xml").write_text(to_mjcf(desc))
+    small_art(tmp_path / "small.png")
+    return tmp_path / "data"
+
+
 @pytest.fixture(scope="session")
 def models(desc: RobotDescription, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """URDF and MJCF files of the default description."""

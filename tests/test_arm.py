@@ -20,12 +20,9 @@ from tattotronix.hardware.program import compile_program, count_period_us
 from tattotronix.hardware.pulse import hold_pulses
 from tattotronix.kinematics import Chain
 from tattotronix.robot.description import RobotDescription
-from tattotronix.robot.mjcf import to_mjcf
-from tattotronix.robot.urdf import to_urdf
 from tattotronix.stage import TattotronixError
 
 from .conftest import ROOT
-from .test_control import small_art
 
 SMALL = ["mask.width_mm=24", "mask.min_region_mm2=0.5"]
 ALL_OFF = {"addr": 64, "reg": 0xFA, "data": [0, 0, 0, 0x10]}
@@ -124,13 +121,8 @@ def test_servo_pulse_holds_widths_and_ends_off() -> None:
 
 
 @pytest.fixture()
-def data(tmp_path: Path, desc: RobotDescription) -> Path:
-    robot = tmp_path / "data" / "robot"
-    robot.mkdir(parents=True)
-    (robot / f"{desc.name}.urdf").write_text(to_urdf(desc))
-    (robot / f"{desc.name}.xml").write_text(to_mjcf(desc))
-    small_art(tmp_path / "small.png")
-    return tmp_path / "data"
+def data(draw_data: Path) -> Path:
+    return draw_data
 
 
 def _arm_cmd(data: Path, *extra: str) -> list[str]:

@@ -8,7 +8,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from PIL import Image, ImageDraw
 
 from tattotronix.config.params import compose
 from tattotronix.control.controller import Controller, Gains, structure_of
@@ -24,6 +23,8 @@ from tattotronix.robot.description import RobotDescription
 from tattotronix.stage import TattotronixError
 from tattotronix.trajectory import Trajectory
 
+from .conftest import small_art
+
 # reference/original.md section 5.3
 Q_REF_TUNE = np.array([-0.0112645418, 0.5611492471, 0.4417099134, -7.58e-9, 0.5679371434])
 KP_20 = np.array([4.3224, 3.1959, 0.7526, 0.0218, 0.0362])
@@ -34,17 +35,6 @@ KD_20 = np.array([0.21612, 0.15980, 0.03763, 0.00109, 0.00181])
 @pytest.fixture(scope="module")
 def dyn(models: tuple[Path, Path], desc: RobotDescription) -> Dynamics:
     return Dynamics(models[0], desc.gravity)
-
-
-def small_art(path: Path) -> Path:
-    """A 240 x 120 px drawing: a ring, a filled square and a dot."""
-    im = Image.new("L", (240, 120), 255)
-    d = ImageDraw.Draw(im)
-    d.ellipse((10, 10, 110, 110), outline=0, width=12)
-    d.rectangle((140, 30, 200, 90), fill=0)
-    d.ellipse((215, 55, 227, 67), fill=0)
-    im.save(path)
-    return path
 
 
 @pytest.fixture(scope="module")

@@ -11,12 +11,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from tattotronix.robot.description import RobotDescription
-from tattotronix.robot.mjcf import to_mjcf
-from tattotronix.robot.urdf import to_urdf
-
 from .conftest import ROOT
-from .test_control import small_art
 
 SMALL = ["mask.width_mm=24", "mask.min_region_mm2=0.5"]
 
@@ -28,19 +23,14 @@ def _draw(data: Path, *overrides: str) -> subprocess.CompletedProcess[str]:
 
 
 @pytest.fixture()
-def data(tmp_path: Path, desc: RobotDescription) -> Path:
-    """A data folder with the generated models (what the robot stage writes)."""
-    robot = tmp_path / "data" / "robot"
-    robot.mkdir(parents=True)
-    (robot / f"{desc.name}.urdf").write_text(to_urdf(desc))
-    (robot / f"{desc.name}.xml").write_text(to_mjcf(desc))
-    return tmp_path / "data"
+def data(draw_data: Path) -> Path:
+    return draw_data
 
 
 @pytest.mark.slow
 @pytest.mark.parametrize("backend", ["mujoco", "pybullet", "model"])
 def test_draw_writes_log_metrics_and_ink_on_every_backend(data: Path, backend: str) -> None:
-    art = small_art(data.parent / "small.png")
+    art = data.parent / "small.png"
     r = _draw(data, f"backend={backend}", f"artwork.source={art}", *SMALL)
     assert r.returncode == 0, r.stderr
     m = json.loads((data / "metrics" / "runs" / f"small-{backend}.json").read_text())
@@ -67,7 +57,7 @@ def test_draw_writes_log_metrics_and_ink_on_every_backend(data: Path, backend: s
 def test_unstable_controller_is_reported_not_crashed(data: Path) -> None:
     """200 Hz at wn = 160 is past the sampled boundary: the run says so, the metrics
     hold no NaN, and the stage still writes everything."""
-    art = small_art(data.parent / "small.png")
+    art = data.parent / "small.png"
     r = _draw(data, "backend=model", f"artwork.source={art}", *SMALL, "controller.rate_hz=200",
               "window=[0,3]")
     assert r.returncode == 0, r.stderr

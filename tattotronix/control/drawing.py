@@ -14,7 +14,6 @@ inks, coloured by agreement) and ``data/metrics/runs/<name>-<backend>.json``.
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 from dataclasses import dataclass, field
@@ -31,7 +30,7 @@ from tattotronix.control.controller import Controller, Gains
 from tattotronix.control.dynamics import Dynamics
 from tattotronix.control.ink import compare_ink, ink_grid, rasterise_ink
 from tattotronix.control.reference import reference_at_ticks, resolve_window
-from tattotronix.control.simulate import Run, simulate
+from tattotronix.control.simulate import Run, simulate, substeps_per_tick
 from tattotronix.control.tracking import tracking_errors
 from tattotronix.kinematics import Chain
 from tattotronix.plants import PlantSettings, make_plant
@@ -201,8 +200,6 @@ def draw_simulated(cfg: Any, out: Outputs) -> dict[str, Any]:
     limit = effort if ctl.torque_limit_nm is None else float(ctl.torque_limit_nm)
     controller = Controller(dyn, gains, ctl.structure, rate, limit)
     settings = PlantSettings.from_config(cfg.plant, desc.gravity, desc.tip_frame)
-    from tattotronix.control.simulate import substeps_per_tick
-
     sub = substeps_per_tick(controller.period_s, settings.dt_s)
     analysis = loop_report(dyn.mass_matrix(tune_q), gains.j_eff, gains.wn, rate, sub)
     sample_every = max(1, round(float(cfg.draw.sample_s) * rate))
@@ -264,9 +261,7 @@ def _score_and_write(cfg: Any, out: Outputs, drawing: Drawing, run: Run,
         "name": drawing.name, "backend": backend, "drawing": drawing.origin,
         "window_s": [window[0], window[1] - window[0]],
         **err.metrics(),
-        "peak_torque_nm": run.peak_torque_nm,
-        "realtime_factor": run.realtime_factor, "wall_s": run.wall_s, "sim_s": run.sim_s,
-        "verdict": run.verdict, "reason": run.reason, "completed": run.completed,
+        **run.summary(),  # peak torque, verdict, real-time factor, wall and sim time
         **ink.metrics(),
         "controller": controller.summary(),
         "plant": {"dt_s": float(cfg.plant.dt_s), "substeps": run.substeps,
@@ -288,8 +283,3 @@ def _score_and_write(cfg: Any, out: Outputs, drawing: Drawing, run: Run,
 
 def _fmt(v: float | None) -> str:
     return "-" if v is None else f"{v:.2f}"
-
-
-def metrics_json(metrics: dict[str, Any]) -> str:
-    """The metrics as the JSON text written."""
-    return json.dumps(metrics, indent=2, sort_keys=True)

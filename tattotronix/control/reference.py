@@ -13,6 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import CubicHermiteSpline
 
+from tattotronix.control.tracking import busiest_window
 from tattotronix.stage import TattotronixError
 
 __all__ = ["Reference", "reference_at_ticks", "resolve_window"]
@@ -72,8 +73,6 @@ def resolve_window(window: object, t: Array, kind: NDArray[np.int8],
         if window.strip().lower() != "busiest":
             raise TattotronixError(f"window={window!r}: give [start_s, length_s], "
                                    "[start_s] or busiest")
-        from tattotronix.control.tracking import busiest_window
-
         start, length = busiest_window(t, kind, busiest_s)
         return start, min(start + length, end)
     try:

@@ -186,7 +186,7 @@ class ArmSession:
         clearance_z_m: the needle's clearance height (arm frame), m.
         feed_m_s: the approach feed (the marking feed), m/s.
         ramp_rad_s: the fastest joint speed of ramps, rad/s.
-        ik: IK settings for lifts and approaches.
+        ik: IK keyword arguments for lifts and approaches (``pipeline.ik_settings``).
         dry_run, realtime, resume: as configured.
         fail_after_writes: dry-run fault injection.
         save_every_s: refresh the state file this often (of program time).
@@ -211,8 +211,7 @@ class ArmSession:
     # -------------------------------------------------------------- geometry helpers
 
     def _ik(self, targets: Array, seed: Array) -> Array:
-        kw = {k: v for k, v in self.ik.items() if k != "seed"}
-        res = solve_path(self.chain, targets, seed=[float(v) for v in seed], **kw)
+        res = solve_path(self.chain, targets, seed=[float(v) for v in seed], **self.ik)
         res.raise_if_failed(targets_m=targets)
         return res.q
 
@@ -402,7 +401,7 @@ def draw_on_arm(cfg: Any, out: Any) -> dict[str, Any]:
         run_dir=out.path("runs", f"{drawing.name}-arm"),
         state_file=out.path(*Path(str(cfg.hardware.state_file)).parts),
         clearance_z_m=clearance, feed_m_s=float(cfg.toolpath.feed_mark_mm_s) / 1e3,
-        ramp_rad_s=speed, ik={**ik_settings(cfg.ik)}, dry_run=bool(cfg.dry_run),
+        ramp_rad_s=speed, ik=ik_settings(cfg.ik), dry_run=bool(cfg.dry_run),
         realtime=bool(cfg.realtime), resume=bool(cfg.resume),
         fail_after_writes=cfg.hardware.fail_after_writes,
         save_every_s=float(cfg.hardware.save_every_s))

@@ -98,12 +98,8 @@ class ServoProgram:
 
     def sent_angles(self, calib: Calibration) -> Array:
         """(F, n) the angles the counts stand for (servo A of each joint), rad."""
-        col = {ch: i for i, ch in enumerate(self.channels)}
-        out = np.empty_like(self.q)
-        for j, js in enumerate(calib.joints):
-            a = js.a
-            out[:, j] = (self.counts[:, col[a.channel]] * self.count_us - a.zero_us) / a.us_per_rad
-        return out
+        return np.array([calib.positions(self.row(i), self.count_us)
+                         for i in range(self.frames)]).reshape(self.q.shape)
 
     def metrics(self, calib: Calibration, chain: Chain) -> dict[str, Any]:
         """Frames, count steps, quantisation per joint (deg) and the tip error it implies."""
