@@ -19,11 +19,15 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
 __all__ = [
+    "ActuatorOption",
+    "ActuatorStudyConfig",
     "ArtworkConfig",
     "Backend",
     "BenchConfig",
     "BoxInertial",
     "Config",
+    "ControlCase",
+    "ControlStudyConfig",
     "ControllerConfig",
     "DrawConfig",
     "FrameConfig",
@@ -351,10 +355,66 @@ class KinematicsStudyConfig:
 
 
 @dataclass
-class StudyConfig:
-    """Settings of the study stages."""
+class ControlCase:
+    """One run of the control study: a controller structure at a bandwidth."""
 
+    structure: Structure = MISSING
+    wn: float = MISSING
+
+
+@dataclass
+class ControlStudyConfig:
+    """The control study (reference section 5.6): structures at wn 20, and a wn sweep.
+
+    ``cases`` maps a run's name (``<structure>-wn<wn>``) to its controller; each runs over
+    the whole drawing and over its busiest ``window_s`` window.
+    """
+
+    cases: dict[str, ControlCase] = MISSING
+
+
+@dataclass
+class ActuatorOption:
+    """A way to drive the servos: how the pulse is stepped, and which joints are bus servos.
+
+    ``command`` is ``pca9685`` (4096 counts per servo frame) or ``arduino`` (1 us steps).
+    """
+
+    name: str = MISSING
+    command: str = MISSING
+    bus_joints: list[str] = field(default_factory=list)
+
+
+@dataclass
+class ActuatorStudyConfig:
+    """The actuator study (reference section 6.6): what hobby servos allow at the needle."""
+
+    every: int = 5  # every 5th marking point is a pose of the study
+    us_per_deg: float = 11.111  # the declared pulse-to-angle scale (2000 us over 180 deg)
+    arduino_step_us: float = 1.0  # the Arduino Servo library's pulse step
+    bus_step_deg: float = 0.087890625  # a 12-bit encoder: 360 / 4096 deg
+    play_deg: float = 1.0  # "one degree of play at every joint"
+    backlash_deg: float = 0.1  # "every 0.1 deg of backlash costs up to ..."
+    options: list[ActuatorOption] = MISSING
+
+
+@dataclass
+class StudyConfig:
+    """Settings of the study stages (each study is a sweep: see dvc.yaml and the README).
+
+    The swept values are lists (``approach_mm``, ``step_mm``, ``rate_hz`` x ``wn``) or
+    named cases (``control``); ``python stages/<study>.py -m key=a,b,c`` runs any other.
+    """
+
+    window_s: float = 12.0  # the original's "busiest window" length
     kinematics: KinematicsStudyConfig = field(default_factory=KinematicsStudyConfig)
+    control: ControlStudyConfig = field(default_factory=ControlStudyConfig)
+    approach_mm: list[float] = field(default_factory=lambda: [0.0, 0.5, 1.0, 2.0, 4.0])
+    step_mm: list[float] = field(default_factory=lambda: [0.6, 0.3, 0.15])
+    rate_hz: list[float] = field(default_factory=lambda: [200.0, 500.0, 1000.0])
+    rate_wn: list[float] = field(default_factory=lambda: [40.0, 80.0, 160.0])
+    rate_plant_dt_s: float = 0.00025  # the rate study's plant step (4 kHz)
+    actuator: ActuatorStudyConfig = field(default_factory=ActuatorStudyConfig)
 
 
 @dataclass
