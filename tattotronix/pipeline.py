@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from tattotronix.art.artwork import load_artwork
+from tattotronix.art.grid import InkMask
 from tattotronix.art.mask import make_mask
 from tattotronix.kinematics import Chain, IkResult, solve_path
 from tattotronix.path.params import ToolpathParams
@@ -23,7 +24,7 @@ from tattotronix.robot.description import RobotDescription
 from tattotronix.trajectory import JointLimits, JointPath, Trajectory, TrajectoryParams
 from tattotronix.trajectory import plan_trajectory as _plan_trajectory
 
-__all__ = ["ik_settings", "plan_drawing", "solve_ik", "trajectory_from_path"]
+__all__ = ["ik_settings", "mask_of", "plan_drawing", "solve_ik", "trajectory_from_path"]
 
 log = logging.getLogger("tattotronix.pipeline")
 
@@ -57,6 +58,20 @@ def trajectory_from_path(cfg: Any, path: JointPath, desc: RobotDescription) -> T
                             ik=ik_settings(cfg.ik))
 
 
+def mask_of(cfg: Any, source: str | Path | None, name: str) -> InkMask:
+    """The ink mask of an artwork, as the artwork and mask stages make it.
+
+    Raises:
+        TattotronixError: unreadable art, or a mask the settings refuse.
+    """
+    m = cfg.mask
+    art = load_artwork(source, m.width_mm, m.res_mm, cfg.artwork.max_pixels, name)
+    grey = art.as_uint8().astype(np.float64)  # what the artwork stage's PNG holds
+    mask, _ = make_mask(grey, m.res_mm, m.method, m.min_region_mm2,
+                        edge_sigma_px=m.edge_sigma_px, edge_k=m.edge_k)
+    return mask
+
+
 def plan_drawing(cfg: Any, source: str | Path | None, name: str,
                  desc: RobotDescription) -> Trajectory:
     """Plan a drawing from its artwork file, in memory (every stage up to the trajectory).
@@ -65,12 +80,9 @@ def plan_drawing(cfg: Any, source: str | Path | None, name: str,
         TattotronixError: whatever a stage would refuse (unreadable art, no ink, a drawing
             off the panel, unreachable points, a speed too high).
     """
-    m = cfg.mask
-    art = load_artwork(source, m.width_mm, m.res_mm, cfg.artwork.max_pixels, name)
-    grey = art.as_uint8().astype(np.float64)  # what the artwork stage's PNG holds
-    mask, _ = make_mask(grey, m.res_mm, m.method, m.min_region_mm2,
-                        edge_sigma_px=m.edge_sigma_px, edge_k=m.edge_k)
-    tp = plan_toolpath(mask, ToolpathParams.from_config(cfg.toolpath, m, cfg.robot.panel))
+    mask = mask_of(cfg, source, name)
+    tp = plan_toolpath(mask, ToolpathParams.from_config(cfg.toolpath, cfg.mask,
+                                                        cfg.robot.panel))
     chain = Chain.from_description(desc)
     res = solve_ik(chain, tp.xyz_m, tp.path.uvz_mm, cfg.ik)
     tcp, _ = chain.fk(res.q)

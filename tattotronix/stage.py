@@ -78,10 +78,21 @@ class Outputs:
     finished (the temporaries are removed).
     """
 
-    def __init__(self, cfg: DictConfig):
+    def __init__(self, cfg: DictConfig, sweep_overrides: list[str] | None = None):
         self.cfg = cfg
         self.data = Path(cfg.paths.data)
+        #: in a Hydra multirun, this job's overrides (``key=value``); None otherwise
+        self.sweep_overrides = sweep_overrides
         self._pending: list[tuple[Path, Path]] = []
+
+    def sweep_suffix(self, ignore: tuple[str, ...] = ()) -> str:
+        """In a multirun, ``@k=v,k=v`` from this job's overrides (keys in ``ignore`` left
+        out), so that the jobs of a sweep never write the same file; "" otherwise."""
+        if not self.sweep_overrides:
+            return ""
+        keep = [o.replace("/", "_") for o in self.sweep_overrides
+                if o.split("=", 1)[0].lstrip("+~") not in ignore]
+        return "@" + ",".join(sorted(keep)) if keep else ""
 
     def path(self, *parts: str) -> Path:
         """A path under ``paths.data``."""
@@ -150,10 +161,11 @@ def _setup_logging() -> None:
     log.setLevel(logging.INFO)
 
 
-def _execute(name: str, body: Callable[[DictConfig, Outputs], None], cfg: DictConfig) -> None:
+def _execute(name: str, body: Callable[[DictConfig, Outputs], None], cfg: DictConfig,
+             sweep_overrides: list[str] | None = None) -> None:
     _setup_logging()
     t0 = time.perf_counter()
-    out = Outputs(cfg)
+    out = Outputs(cfg, sweep_overrides)
     try:
         with out.transaction():
             body(cfg, out)
@@ -205,6 +217,20 @@ def run_stage(name: str, body: Callable[[DictConfig, Outputs], None]) -> None:
         except ConfigError as exc:
             print(f"{name}: error: {exc}", file=sys.stderr)
             raise SystemExit(2) from None
-        _execute(name, body, checked)
+        _execute(name, body, checked, _sweep_overrides())
 
     _main()
+
+
+def _sweep_overrides() -> list[str] | None:
+    """This job's overrides when Hydra runs it as part of a multirun (``-m``)."""
+    from hydra.core.hydra_config import HydraConfig
+    from hydra.types import RunMode
+
+    try:
+        hc = HydraConfig.get()
+    except ValueError:
+        return None
+    if hc.mode != RunMode.MULTIRUN:
+        return None
+    return [str(o) for o in hc.overrides.task]

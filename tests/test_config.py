@@ -123,18 +123,55 @@ def test_stage_bad_value_exits_with_the_allowed_values(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_dvc_repro_on_a_clean_clone(tmp_path: Path) -> None:
-    """`dvc repro` on a fresh clone runs the stages; a second `dvc repro` does nothing."""
+    """Acceptance: `dvc repro` on a fresh clone runs every stage and ends certified; a
+    second `dvc repro` does nothing; changing `controller.wn` in conf/ reruns only what
+    depends on it, and `dvc metrics diff` shows the tracking change; `dvc exp run -S ...
+    --queue`, then `dvc exp show`, work."""
     clone = tmp_path / "clone"
     subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True)
-    dvc = [PYTHON, "-m", "dvc"]
-    first = subprocess.run([*dvc, "repro"], cwd=clone, env=ENV, capture_output=True, text=True)
-    assert first.returncode == 0, first.stdout + first.stderr
-    # cached outputs are rebuilt; stages whose outputs are committed metrics are current
+    env = {**ENV, "GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME": "t",
+           "GIT_COMMITTER_EMAIL": "t@t"}
+
+    def run(*argv: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(list(argv), cwd=clone, env=env, capture_output=True, text=True)
+
+    dvc = (PYTHON, "-m", "dvc")
+    first = run(*dvc, "repro")
+    assert first.returncode == 0, first.stdout[-4000:] + first.stderr[-4000:]
     assert "Running stage 'robot'" in first.stdout
+    assert "Running stage 'certify'" in first.stdout
     for stage in ("config", "mass"):
         assert f"Stage '{stage}'" in first.stdout or f"stage '{stage}'" in first.stdout
-    second = subprocess.run([*dvc, "repro"], cwd=clone, env=ENV, capture_output=True, text=True)
+    second = run(*dvc, "repro")
     assert second.returncode == 0
     assert "Running stage" not in second.stdout
-    status = subprocess.run([*dvc, "status"], cwd=clone, env=ENV, capture_output=True, text=True)
-    assert "up to date" in status.stdout
+    assert "up to date" in run(*dvc, "status").stdout
+
+    # a new bandwidth in conf/: only what depends on it reruns
+    ctl = clone / "conf" / "controller" / "default.yaml"
+    ctl.write_text(ctl.read_text().replace("wn: 160.0", "wn: 120.0"))
+    assert run(PYTHON, "-m", "tattotronix.config.params").returncode == 0
+    third = run(*dvc, "repro")
+    ran = {line.split("'")[1] for line in third.stdout.splitlines()
+           if line.startswith("Running stage '")}
+    assert "simulate@emblem" in ran and "figures@emblem" in ran
+    untouched = ("robot", "toolpath@emblem", "ik@emblem", "trajectory@emblem",
+                 "deploy@emblem", "actuator@emblem", "kinematics@emblem")
+    assert not ran & set(untouched), ran
+    assert not any(s.startswith(("control@", "rate@")) for s in ran), ran  # wn set per case
+    # the README quotes the tracking at wn 160: certify refuses the new numbers
+    assert third.returncode != 0 and "Running stage 'certify'" in third.stdout
+    assert "not traced" in third.stdout + third.stderr
+    diff = run(*dvc, "metrics", "diff")
+    assert diff.returncode == 0
+    assert "runs/emblem-mujoco.json" in diff.stdout and "settled_mean_um" in diff.stdout
+    assert run("git", "checkout", "--", ".").returncode == 0  # conf, params, lock, metrics
+
+    # experiments: queued with an override, run, and shown
+    queued = run(*dvc, "exp", "run", "--queue", "-S", "hardware.ramp_rad_s=0.3")
+    assert queued.returncode == 0, queued.stdout + queued.stderr
+    ran_all = run(*dvc, "exp", "run", "--run-all")
+    assert ran_all.returncode == 0, ran_all.stdout[-3000:] + ran_all.stderr[-3000:]
+    show = run(*dvc, "exp", "show", "--no-pager", "--csv")
+    assert show.returncode == 0, show.stderr
+    assert "0.3" in show.stdout and "hardware.ramp_rad_s" in show.stdout

@@ -225,7 +225,7 @@ class ToolpathConfig:
     step_mm: float = 0.15
     clearance_mm: float = 8.0
     plunge_mm: float = 1.5
-    approach_mm: float = 4.0
+    approach_mm: float = 2.0
     min_loop_px: int = 8
     feed_mark_mm_s: float = 6.0
     feed_travel_mm_s: float = 60.0
@@ -411,8 +411,8 @@ class StudyConfig:
     control: ControlStudyConfig = field(default_factory=ControlStudyConfig)
     approach_mm: list[float] = field(default_factory=lambda: [0.0, 0.5, 1.0, 2.0, 4.0])
     step_mm: list[float] = field(default_factory=lambda: [0.6, 0.3, 0.15])
-    rate_hz: list[float] = field(default_factory=lambda: [200.0, 500.0, 1000.0])
-    rate_wn: list[float] = field(default_factory=lambda: [40.0, 80.0, 160.0])
+    rate_hz: list[int] = field(default_factory=lambda: [200, 500, 1000])
+    rate_wn: list[int] = field(default_factory=lambda: [40, 80, 160])
     rate_plant_dt_s: float = 0.00025  # the rate study's plant step (4 kHz)
     actuator: ActuatorStudyConfig = field(default_factory=ActuatorStudyConfig)
 

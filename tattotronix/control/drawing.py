@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -31,14 +31,15 @@ from tattotronix.control.dynamics import Dynamics
 from tattotronix.control.ink import compare_ink, ink_grid, rasterise_ink
 from tattotronix.control.reference import reference_at_ticks, resolve_window
 from tattotronix.control.simulate import Run, simulate, substeps_per_tick
-from tattotronix.control.tracking import tracking_errors
+from tattotronix.control.tracking import TrackingErrors, tracking_errors
 from tattotronix.kinematics import Chain
 from tattotronix.plants import PlantSettings, make_plant
 from tattotronix.robot.description import RobotDescription, build_description
-from tattotronix.stage import Outputs, TattotronixError, code_version
+from tattotronix.stage import Outputs, StageInputMissing, TattotronixError, code_version
 from tattotronix.trajectory import JointPath, load_trajectory, provenance_json
 
-__all__ = ["Drawing", "draw_simulated", "resolve_drawing", "available_drawings"]
+__all__ = ["ClosedLoop", "Drawing", "available_drawings", "draw_simulated", "resolve_drawing",
+           "run_closed_loop"]
 
 log = logging.getLogger("tattotronix.draw")
 Array = NDArray[np.float64]
@@ -71,18 +72,43 @@ def available_drawings(data: Path) -> list[str]:
     return stored + [b for b in BUILTINS if b not in stored]
 
 
-def _plan_settings(cfg: Any) -> dict[str, Any]:
-    """The settings a stored trajectory must share with this run to be played as is."""
+#: toolpath keys that only time the path: a change re-times the stored IK path
+_TIMING_KEYS = ("feed_mark_mm_s", "feed_travel_mm_s", "lift_s")
+
+
+def _plain(cfg: Any) -> dict[str, Any]:
     c = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True) if isinstance(
         cfg, DictConfig) else cfg
     assert isinstance(c, dict)
+    return {str(k): v for k, v in c.items()}
+
+
+def _path_settings(cfg: Any) -> dict[str, Any]:
+    """The settings that shape the joint path (mask, toolpath geometry, IK)."""
+    c = _plain(cfg)
+    return {"mask": c.get("mask"), "ik": c.get("ik"),
+            "toolpath": {k: v for k, v in (c.get("toolpath") or {}).items()
+                         if k not in _TIMING_KEYS}}
+
+
+def _timing_settings(cfg: Any) -> dict[str, Any]:
+    """The settings that time the path (speed, the time law, the marking feed)."""
+    c = _plain(cfg)
     return {"speed": float(c["speed"]), "trajectory": c["trajectory"],
-            "feed_mark_mm_s": float(c["toolpath"]["feed_mark_mm_s"]),
-            "pitch_mm": float(c["toolpath"]["pitch_mm"])}
+            "feed_mark_mm_s": float(c["toolpath"]["feed_mark_mm_s"])}
+
+
+def _differ(want: dict[str, Any], have: dict[str, Any] | None) -> list[str]:
+    return sorted(k for k in want if have is None or have.get(k) != want[k])
 
 
 def resolve_drawing(cfg: Any, data: Path, desc: RobotDescription) -> Drawing:
     """Find or plan the drawing ``cfg`` asks for (see the module docstring).
+
+    A stored trajectory is played as is when it was planned with this config's path and
+    timing settings; re-timed from the stored IK path when only the timing differs
+    (``speed``, ``trajectory.*``, the marking feed); re-planned from the artwork, in
+    memory, when the path itself differs (``mask.*``, ``toolpath.*``, ``ik.*``).
 
     Raises:
         TattotronixError: an unknown ``art`` (the message lists those available), or
@@ -100,22 +126,33 @@ def resolve_drawing(cfg: Any, data: Path, desc: RobotDescription) -> Drawing:
     name = str(art) if art is not None else artwork_name(cfg.artwork)
     stored = data / "trajectories" / f"{name}.npz"
     ik_file = data / "ik" / f"{name}.npz"
+    same_path = True
+    planned_from: Any = None
     if stored.exists():
         st = load_trajectory(stored)
-        want = _plan_settings(cfg)
-        have = _plan_settings(st.provenance.get("config", {})) if "config" in \
-            st.provenance else None
-        if have == want:
+        have = st.provenance.get("config")
+        path_diff = _differ(_path_settings(cfg), _path_settings(have) if have else None)
+        time_diff = _differ(_timing_settings(cfg), _timing_settings(have) if have else None)
+        if not path_diff and not time_diff:
             return Drawing(name, st.t, st.q, st.qd, st.kind, "stored", {"trajectory": stored})
-        diff = sorted(k for k in want if have is None or have.get(k) != want[k])
-        log.info("draw %s: the stored trajectory was planned with other %s: re-timing",
-                 name, ", ".join(diff))
-    if ik_file.exists():
+        same_path = not path_diff
+        planned_from = ((have or {}).get("artwork") or {}).get("source")
+        log.info("draw %s: the stored trajectory was planned with other %s: %s", name,
+                 ", ".join(path_diff + time_diff), "re-timing" if same_path else "re-planning")
+    if same_path and ik_file.exists():
         traj = trajectory_from_path(cfg, JointPath.from_npz(ik_file), desc)
         return Drawing(name, traj.t, traj.q, traj.qd, traj.kind, "retimed", {"ik": ik_file})
     if name in BUILTINS:
         traj = plan_drawing(cfg, name, name, desc)
         return Drawing(name, traj.t, traj.q, traj.qd, traj.kind, "planned", {})
+    if not same_path and planned_from is not None and Path(str(planned_from)).is_file():
+        traj = plan_drawing(cfg, planned_from, name, desc)
+        return Drawing(name, traj.t, traj.q, traj.qd, traj.kind, "planned",
+                       {"artwork": Path(str(planned_from))})
+    if not same_path:
+        raise TattotronixError(
+            f"the drawing '{name}' was planned with other path settings and is not a "
+            "built-in artwork: give artwork.source=PATH to re-plan it")
     raise TattotronixError(
         f"no drawing named '{name}': available are {', '.join(available_drawings(data))} "
         "(or give artwork.source=PATH to plan a new one)")
@@ -172,18 +209,92 @@ def _ink_images(sim: NDArray[np.bool_], plan: NDArray[np.bool_]) -> tuple[Any, A
     return ink, Image.fromarray(rgb, mode="RGB")
 
 
-def draw_simulated(cfg: Any, out: Outputs) -> dict[str, Any]:
-    """Run the configured drawing on the configured simulated backend; write its outputs.
+@dataclass(frozen=True)
+class ClosedLoop:
+    """A closed-loop run of a drawing, with what set it up.
 
-    Returns:
-        The run metrics (also written to ``data/metrics/runs/<name>-<backend>.json``).
+    Attributes:
+        drawing: what was played.
+        run: the run (ticks, torques, verdict).
+        controller: the controller that ran it.
+        analysis: the loop analysis at the tuning pose (:func:`loop_report`).
+        window: ``(start_s, end_s)`` of the stretch that ran.
+        sample_every: ticks between error samples.
+        backend: the plant.
+        plant_dt_s: the plant's integration step, s.
+    """
+
+    drawing: Drawing
+    run: Run
+    controller: Controller
+    analysis: dict[str, Any]
+    window: tuple[float, float]
+    sample_every: int
+    backend: str
+    plant_dt_s: float
+
+    def samples(self) -> NDArray[np.intp]:
+        """Tick indices of the error samples."""
+        return np.arange(0, len(self.run.t), self.sample_every)
+
+    def errors(self, chain: Chain, settle_periods: float,
+               tips: tuple[Array, Array] | None = None) -> TrackingErrors:
+        """The sampled tracking errors (reference section 5.5).
+
+        Args:
+            chain: the kinematic chain (FK of the tip).
+            settle_periods: "settled" drops ``settle_periods / wn`` after each entry.
+            tips: the simulated and reference tips at every tick, if already computed.
+        """
+        idx = self.samples()
+        if tips is None:
+            tip = chain.fk(self.run.q[idx])[0] if len(idx) else np.zeros((0, 3))
+            tip_ref = chain.fk(self.run.ref.q[idx])[0] if len(idx) else np.zeros((0, 3))
+        else:
+            tip, tip_ref = tips[0][idx], tips[1][idx]
+        return tracking_errors(self.run.t[idx], tip, tip_ref, self.drawing.t,
+                               self.drawing.kind, self.controller.gains.wn, settle_periods)
+
+    def metrics(self, err: TrackingErrors) -> dict[str, Any]:
+        """Tracking, verdict, controller, plant and loop analysis: plain JSON values."""
+        return _finite({
+            "name": self.drawing.name, "backend": self.backend,
+            "drawing": self.drawing.origin,
+            "window_s": [self.window[0], self.window[1] - self.window[0]],
+            **err.metrics(),
+            **self.run.summary(),  # peak torque, verdict, real-time factor, wall/sim time
+            "controller": self.controller.summary(),
+            "loop": self.analysis,
+            "sample_s": self.sample_every * self.controller.period_s,
+        })
+
+
+def run_closed_loop(cfg: Any, data: Path, desc: RobotDescription, drawing: Drawing, *,
+                    window: object = None, plant_dt_s: float | None = None,
+                    progress: bool = False, viewer: bool = False) -> ClosedLoop:
+    """Run ``drawing`` closed loop on the configured backend and controller.
+
+    Args:
+        cfg: the composed config (``backend``, ``controller``, ``plant``, ``draw``).
+        data: the data folder (the generated URDF and MJCF).
+        desc: the robot description.
+        drawing: what to play.
+        window: ``None`` (all), ``[start_s, length_s]`` or ``"busiest"``
+            (``study.window_s`` long).
+        plant_dt_s: the plant step, s (default ``plant.dt_s``).
+        progress: show a progress bar.
+        viewer: watch the run where a display exists.
+
+    Raises:
+        TattotronixError: missing models, a bad rate, tuning pose or window.
     """
     backend = str(getattr(cfg.backend, "name", cfg.backend))
-    desc = build_description(cfg.robot)
-    urdf = out.require(out.path("robot", f"{desc.name}.urdf"), "robot")
-    mjcf = out.require(out.path("robot", f"{desc.name}.xml"), "robot")
-    drawing = resolve_drawing(cfg, out.data, desc)
-    start, end = resolve_window(cfg.window, drawing.t, drawing.kind)
+    urdf = data / "robot" / f"{desc.name}.urdf"
+    mjcf = data / "robot" / f"{desc.name}.xml"
+    for f in (urdf, mjcf):
+        if not f.exists():
+            raise StageInputMissing(f, "robot")
+    start, end = resolve_window(window, drawing.t, drawing.kind, float(cfg.study.window_s))
     ctl = cfg.controller
     rate = float(ctl.rate_hz)
     if not (math.isfinite(rate) and rate > 0):
@@ -200,40 +311,55 @@ def draw_simulated(cfg: Any, out: Outputs) -> dict[str, Any]:
     limit = effort if ctl.torque_limit_nm is None else float(ctl.torque_limit_nm)
     controller = Controller(dyn, gains, ctl.structure, rate, limit)
     settings = PlantSettings.from_config(cfg.plant, desc.gravity, desc.tip_frame)
+    if plant_dt_s is not None:
+        settings = replace(settings, dt_s=float(plant_dt_s))
     sub = substeps_per_tick(controller.period_s, settings.dt_s)
     analysis = loop_report(dyn.mass_matrix(tune_q), gains.j_eff, gains.wn, rate, sub)
     sample_every = max(1, round(float(cfg.draw.sample_s) * rate))
     label = f"{drawing.name} on {backend}"
-    log.info("draw %s: %s drawing, %.1f..%.1f s, %s at wn %g rad/s, %g Hz (wn T %.3f, "
-             "sampled boundary %.3f)", label, drawing.origin, start, end,
-             controller.structure.name, gains.wn, rate, analysis["wnT"],
-             analysis["sampled_boundary_numeric_wnT"])
-    bar = _Progress(ref.duration_s, label, bool(cfg.draw.progress))
+    log.info("draw %s: %s drawing, %.1f..%.1f s, %s at wn %g rad/s, %g Hz, plant %g Hz "
+             "(wn T %.3f, sampled boundary %.3f)", label, drawing.origin, start, end,
+             controller.structure.name, gains.wn, rate, 1.0 / settings.dt_s,
+             analysis["wnT"], analysis["sampled_boundary_numeric_wnT"])
+    bar = _Progress(ref.duration_s, label, progress)
     try:
         with make_plant(backend, settings, urdf=urdf, mjcf=mjcf,
                         joint_names=desc.joint_names, lower=desc.lower, upper=desc.upper,
-                        viewer=bool(cfg.viewer)) as plant:
+                        viewer=viewer) as plant:
             run = simulate(plant, controller, ref, sample_every=sample_every,
                            abort_error_rad=float(cfg.plant.abort_error_rad), progress=bar,
-                           viewer=bool(cfg.viewer))
+                           viewer=viewer)
     finally:
         bar.close()
-    metrics = _score_and_write(cfg, out, drawing, run, controller, analysis, desc,
-                               sample_every, backend, (start, end))
-    return metrics
+    return ClosedLoop(drawing, run, controller, analysis, (start, end), sample_every,
+                      backend, settings.dt_s)
 
 
-def _score_and_write(cfg: Any, out: Outputs, drawing: Drawing, run: Run,
-                     controller: Controller, analysis: dict[str, Any],
-                     desc: RobotDescription, sample_every: int, backend: str,
-                     window: tuple[float, float]) -> dict[str, Any]:
+def draw_simulated(cfg: Any, out: Outputs) -> dict[str, Any]:
+    """Run the configured drawing on the configured simulated backend; write its outputs.
+
+    Returns:
+        The run metrics (also written to ``data/metrics/runs/<name>-<backend>.json``).
+    """
+    desc = build_description(cfg.robot)
+    drawing = resolve_drawing(cfg, out.data, desc)
+    loop = run_closed_loop(cfg, out.data, desc, drawing, window=cfg.window,
+                           progress=bool(cfg.draw.progress), viewer=bool(cfg.viewer))
+    return _score_and_write(cfg, out, loop, desc)
+
+
+def _score_and_write(cfg: Any, out: Outputs, loop: ClosedLoop,
+                     desc: RobotDescription) -> dict[str, Any]:
+    run, drawing, backend = loop.run, loop.drawing, loop.backend
+    # the jobs of a multirun (draw.py -m controller.wn=40,80) each get their own outputs
+    label = f"{drawing.name}-{backend}" + out.sweep_suffix(
+        ("backend", "art", "artwork.name", "artwork.source", "draw.progress", "viewer"))
     chain = Chain.from_description(desc)
     k = len(run.t)
     tip, _ = chain.fk(run.q) if k else (np.zeros((0, 3)), None)
     tip_ref, _ = chain.fk(run.ref.q[:k]) if k else (np.zeros((0, 3)), None)
-    idx = np.arange(0, k, run.sample_every)
-    err = tracking_errors(run.t[idx], tip[idx], tip_ref[idx], drawing.t, drawing.kind,
-                          controller.gains.wn, float(cfg.draw.settle_periods))
+    idx = loop.samples()
+    err = loop.errors(chain, float(cfg.draw.settle_periods), (tip, tip_ref))
     origin = np.asarray(cfg.toolpath.panel_origin, dtype=np.float64)
     res = float(cfg.draw.ink_res_mm)
     grid = ink_grid([tip, tip_ref], origin, res)
@@ -241,14 +367,12 @@ def _score_and_write(cfg: Any, out: Outputs, drawing: Drawing, run: Run,
     plan_ink = rasterise_ink(tip_ref, origin, grid, float(cfg.draw.needle_mm))
     ink = compare_ink(sim_ink, plan_ink, res)
 
-    run_dir = out.path("runs", f"{drawing.name}-{backend}")
+    run_dir = out.path("runs", label)
     ink_img, cmp_img = _ink_images(sim_ink, plan_ink)
     dpi = 25.4 / res
     ink_img.save(out.tmp_path(run_dir / "ink.png"), format="PNG", dpi=(dpi, dpi))
     cmp_img.save(out.tmp_path(run_dir / "ink_vs_plan.png"), format="PNG", dpi=(dpi, dpi))
-    config = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True) if isinstance(
-        cfg, DictConfig) else dict(cfg)
-    assert isinstance(config, dict)
+    config = _plain(cfg)
     prov = provenance_json({str(a): b for a, b in config.items()}, drawing.inputs,
                            code_version())
     np.savez_compressed(
@@ -257,22 +381,15 @@ def _score_and_write(cfg: Any, out: Outputs, drawing: Drawing, run: Run,
         tau=run.tau[idx], q_ref=run.ref.q[idx], qd_ref=run.ref.qd[idx], tip=tip[idx],
         tip_ref=tip_ref[idx], error_m=err.error_m, down=err.down, settled=err.settled,
         provenance=np.array(prov))
-    metrics: dict[str, Any] = {
-        "name": drawing.name, "backend": backend, "drawing": drawing.origin,
-        "window_s": [window[0], window[1] - window[0]],
-        **err.metrics(),
-        **run.summary(),  # peak torque, verdict, real-time factor, wall and sim time
+    metrics = loop.metrics(err)
+    metrics.update(_finite({
         **ink.metrics(),
-        "controller": controller.summary(),
-        "plant": {"dt_s": float(cfg.plant.dt_s), "substeps": run.substeps,
+        "plant": {"dt_s": loop.plant_dt_s, "substeps": run.substeps,
                   "damping": float(cfg.plant.damping),
                   "joint_limits": bool(cfg.plant.joint_limits),
                   "contacts": bool(cfg.plant.contacts)},
-        "loop": analysis,
-        "sample_s": sample_every * controller.period_s,
-    }
-    metrics = _finite(metrics)
-    out.write_json(out.path("metrics", "runs", f"{drawing.name}-{backend}.json"), metrics)
+    }))
+    out.write_json(out.path("metrics", "runs", f"{label}.json"), metrics)
     log.info("draw %s on %s: %s; settled %s / %s um (mean / max), marking max %s um, "
              "peak %.3f N m, ink IoU %.3f, %.0fx real time (%.1f s)", drawing.name, backend,
              run.verdict, _fmt(metrics["settled_mean_um"]), _fmt(metrics["settled_max_um"]),

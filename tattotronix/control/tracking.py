@@ -77,7 +77,8 @@ class TrackingErrors:
 
     def metrics(self) -> dict[str, Any]:
         """``settled_mean_um``, ``settled_max_um``, ``marking_mean_um``, ``marking_max_um``,
-        ``travel_mean_um`` (None where no sample qualifies), ``samples``, ``entries``."""
+        ``travel_mean_um``, ``entry_max_um`` (the worst marking sample within the settling
+        time after an entry; None where no sample qualifies), ``samples``, ``entries``."""
         e = self.error_m * UM_PER_M
 
         def stat(sel: NDArray[np.bool_], f: Any) -> float | None:
@@ -88,6 +89,7 @@ class TrackingErrors:
             "settled_max_um": stat(self.settled, np.max),
             "marking_mean_um": stat(self.down, np.mean),
             "marking_max_um": stat(self.down, np.max),
+            "entry_max_um": stat(self.down & ~self.settled, np.max),
             "travel_mean_um": stat(~self.down, np.mean),
             "worst_um": float(e.max()) if len(e) else None,
             "worst_at_s": float(self.t[int(np.argmax(e))]) if len(e) else None,

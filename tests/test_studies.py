@@ -1,0 +1,211 @@
+"""The closed-loop studies (control, approach, resample, rate): case names, the chord
+error, cases end to end on a small artwork, sweeps through Hydra's launchers, and the
+stored study metrics against the acceptance rules."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from tattotronix.config.params import compose
+from tattotronix.path.polyline import resample
+from tattotronix.stage import Outputs
+from tattotronix.studies.sweeps import STUDIES, case_name, chord_error_mm, load_cases
+
+from .conftest import ROOT
+
+SMALL = ["mask.width_mm=24", "mask.min_region_mm2=0.5"]
+
+
+def _stage(study: str, data: Path, *overrides: str, multirun: bool = False
+           ) -> subprocess.CompletedProcess[str]:
+    art = data.parent / "small.png"
+    argv = [sys.executable, f"stages/{study}.py", *(["-m"] if multirun else []),
+            f"paths.data={data}", f"artwork.source={art}", "draw.progress=false", *SMALL,
+            *overrides]
+    return subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=900)
+
+
+# --- names -----------------------------------------------------------------------------
+
+def test_case_names_match_the_dvc_stage_outputs() -> None:
+    """dvc.yaml names each case's outputs from conf/study; the stage names them from the
+    swept keys: the two must agree, or DVC would miss the files."""
+    params = yaml.safe_load((ROOT / "params.yaml").read_text())["study"]
+    dvc = (ROOT / "dvc.yaml").read_text()
+    for key, case in params["control"]["cases"].items():
+        cfg = compose([f"controller.structure={case['structure']}",
+                       f"controller.wn={case['wn']}"])
+        assert case_name("control", cfg) == key
+    assert "${paths.data}/metrics/control/${study_artwork}/${key}.json" in dvc
+    for v in params["approach_mm"]:
+        assert case_name("approach", compose([f"toolpath.approach_mm={v}"])) == f"{v}mm"
+    assert "${paths.data}/metrics/approach/${study_artwork}/${item}mm.json" in dvc
+    for v in params["step_mm"]:
+        assert case_name("resample", compose([f"toolpath.step_mm={v}"])) == f"{v}mm"
+    for r in params["rate_hz"]:
+        for w in params["rate_wn"]:
+            cfg = compose([f"controller.rate_hz={r}", f"controller.wn={w}"])
+            assert case_name("rate", cfg) == f"{r}hz-wn{w}"
+    assert "${item.rate}hz-wn${item.wn}.json" in dvc
+
+
+def test_sweep_suffix_names_the_other_overrides_only_in_a_multirun() -> None:
+    cfg = compose()
+    assert Outputs(cfg).sweep_suffix() == ""
+    out = Outputs(cfg, ["controller.wn=40", "plant.damping=0.01", "paths.data=a/b"])
+    assert out.sweep_suffix(("controller.wn",)) == "@paths.data=a_b,plant.damping=0.01"
+    assert Outputs(cfg, ["controller.wn=40"]).sweep_suffix(("controller.wn",)) == ""
+
+
+# --- chord error -----------------------------------------------------------------------
+
+@pytest.mark.parametrize("radius,step", [(15.0, 0.6), (15.0, 0.3), (8.0, 0.15), (2.0, 0.6)])
+def test_chord_error_on_a_circle_is_the_sagitta(radius: float, step: float) -> None:
+    th = np.linspace(0.0, 2 * np.pi, 20001)
+    circle = np.column_stack([radius * np.cos(th), radius * np.sin(th)])
+    sagitta = radius * (1 - np.cos(np.arcsin(step / (2 * radius))))  # ~ h^2 / 8R
+    assert chord_error_mm(circle, step) == pytest.approx(sagitta, rel=2e-3)
+
+
+def test_chord_error_of_a_straight_line_and_of_its_own_resampling_is_zero() -> None:
+    line = np.column_stack([np.linspace(0, 10, 101), np.zeros(101)])
+    assert chord_error_mm(line, 0.6) == pytest.approx(0.0, abs=1e-12)
+    th = np.linspace(0.0, 2 * np.pi, 4001)
+    dense = np.column_stack([5 * np.cos(th), 5 * np.sin(th)])
+    coarse = resample(dense, 0.6)
+    # the chords of a polyline resampled at its own vertices are the polyline itself
+    assert chord_error_mm(coarse, 1e-3) < 1e-9
+    assert chord_error_mm(dense[:2], 0.6) == 0.0
+
+
+# --- cases end to end ------------------------------------------------------------------
+
+@pytest.mark.slow
+def test_control_case_runs_whole_and_busiest_and_writes_its_metrics(draw_data: Path) -> None:
+    r = _stage("control", draw_data, "controller.structure=pid_g", "controller.wn=80")
+    assert r.returncode == 0, r.stderr
+    m = json.loads((draw_data / "metrics/control/small/pid_g-wn80.json").read_text())
+    assert m["study"] == "control" and m["case"] == "pid_g-wn80"
+    assert m["settings"] == {"controller.structure": "pid_g", "controller.wn": 80.0}
+    for w in ("whole", "busiest"):
+        assert m[w]["verdict"] == "ok" and m[w]["completed"]
+        assert 0 < m[w]["settled_mean_um"] <= m[w]["marking_max_um"]
+        assert "wall_s" not in m[w] and "realtime_factor" not in m[w]  # no machine noise
+    assert m["busiest"]["sim_s"] <= 12.001 < m["whole"]["sim_s"]
+    with np.load(draw_data / "studies/control/small/pid_g-wn80.npz") as z:
+        assert len(z["whole_error_um"]) == m["whole"]["samples"]
+        assert z["whole_down"].sum() == m["whole"]["marking_samples"]
+
+
+@pytest.mark.slow
+def test_approach_and_resample_cases_replan_the_path(draw_data: Path) -> None:
+    for study, key in (("approach", "toolpath.approach_mm=0.0"),
+                       ("approach", "toolpath.approach_mm=4.0"),
+                       ("resample", "toolpath.step_mm=0.6")):
+        r = _stage(study, draw_data, key)
+        assert r.returncode == 0, r.stderr
+    a = load_cases(draw_data, "approach", "small")
+    assert sorted(a) == ["0.0mm", "4.0mm"]
+    # the slow approach costs cycle time and cuts the entry transient
+    assert a["4.0mm"]["drawing"]["duration_s"] > a["0.0mm"]["drawing"]["duration_s"]
+    assert a["4.0mm"]["whole"]["entry_max_um"] < a["0.0mm"]["whole"]["entry_max_um"]
+    res = load_cases(draw_data, "resample", "small")["0.6mm"]
+    # a 0.6 mm chord on the ring's ~4 mm radius: sagitta ~ h^2 / 8R ~ 11 um
+    assert 2.0 < res["chord"]["chord_error_um"] < 60.0
+    assert res["drawing"]["points"] < a["4.0mm"]["drawing"]["points"]
+
+
+@pytest.mark.slow
+def test_rate_case_past_the_boundary_fails_and_agrees_with_it(draw_data: Path) -> None:
+    r = _stage("rate", draw_data, "controller.rate_hz=200", "controller.wn=160")
+    assert r.returncode == 0, r.stderr
+    m = json.loads((draw_data / "metrics/rate/small/200hz-wn160.json").read_text())
+    chk = m["verdict_check"]
+    assert m["plant_dt_s"] == 0.00025 and chk["substeps"] == 20
+    assert chk["wnT"] == pytest.approx(0.8)
+    assert chk["predicted"] == "fail" and chk["verdict"] != "ok" and chk["agrees"]
+    assert chk["boundary_numeric_wnT"] < chk["boundary_wnT"]
+
+
+@pytest.mark.slow
+def test_multirun_sweeps_in_parallel_with_joblib(draw_data: Path) -> None:
+    r = _stage("control", draw_data, "controller.structure=pid_g_v",
+               "controller.wn=40,160", multirun=True)
+    assert r.returncode == 0, r.stderr
+    assert "JoblibLauncher" in r.stdout + r.stderr
+    assert sorted(load_cases(draw_data, "control", "small")) == ["pid_g_v-wn160",
+                                                               "pid_g_v-wn40"]
+
+
+@pytest.mark.slow
+def test_the_cluster_sweep_runs_through_submitit(draw_data: Path, tmp_path: Path) -> None:
+    """The cluster configuration (conf/hydra/launcher/cluster.yaml, SLURM through
+    submitit) composes; the same sweep runs through submitit's local executor."""
+    show = subprocess.run([sys.executable, "stages/rate.py", "--cfg", "hydra",
+                           "hydra/launcher=cluster"], cwd=ROOT, capture_output=True,
+                          text=True, timeout=120)
+    assert show.returncode == 0, show.stderr
+    launcher = yaml.safe_load(show.stdout)["hydra"]["launcher"]
+    assert launcher["_target_"].endswith("submitit_launcher.SlurmLauncher")
+    assert launcher["cpus_per_task"] == 1 and launcher["timeout_min"] >= 30
+    r = _stage("rate", draw_data, "hydra/launcher=submitit_local",
+               f"hydra.sweep.dir={tmp_path / 'sweep'}", "controller.rate_hz=1000",
+               "controller.wn=40,80", multirun=True)
+    assert r.returncode == 0, r.stderr
+    cases = load_cases(draw_data, "rate", "small")
+    assert sorted(cases) == ["1000hz-wn40", "1000hz-wn80"]
+    assert all(c["verdict_check"]["verdict"] == "ok" for c in cases.values())
+
+
+# --- the stored study metrics ----------------------------------------------------------
+
+def _stored(study: str) -> dict[str, dict]:
+    cases = load_cases(ROOT / "data", study, "emblem")
+    if not cases:
+        pytest.skip(f"no stored {study} metrics (run dvc repro)")
+    return cases
+
+
+def test_every_configured_case_has_stored_metrics() -> None:
+    params = yaml.safe_load((ROOT / "params.yaml").read_text())["study"]
+    expect = {
+        "control": set(params["control"]["cases"]),
+        "approach": {f"{v}mm" for v in params["approach_mm"]},
+        "resample": {f"{v}mm" for v in params["step_mm"]},
+        "rate": {f"{r}hz-wn{w}" for r in params["rate_hz"] for w in params["rate_wn"]},
+    }
+    for study in STUDIES:
+        assert set(_stored(study)) == expect[study], study
+
+
+def test_the_nine_rate_verdicts_agree_with_the_computed_boundary() -> None:
+    """Reference section 5.8: ok at wn T <= 0.2, failing at >= 0.32, and the computed
+    boundary sorts all nine."""
+    cases = _stored("rate")
+    assert len(cases) == 9
+    for name, c in cases.items():
+        chk = c["verdict_check"]
+        assert chk["agrees"], (name, chk)
+        if chk["wnT"] <= 0.2 + 1e-12:
+            assert chk["verdict"] == "ok", name
+        if chk["wnT"] >= 0.32 - 1e-12:
+            assert chk["verdict"] in ("saturated", "diverged"), name
+        assert c["busiest"]["verdict"] == chk["verdict"] or chk["verdict"] != "ok"
+
+
+def test_control_study_orders_like_the_original() -> None:
+    """More bandwidth tracks better (pid_g, up to where the whole drawing saturates), and
+    gravity feedforward beats plain PID."""
+    c = _stored("control")
+    ok = [w for w in (10, 20, 40, 80, 160) if c[f"pid_g-wn{w}"]["whole"]["verdict"] == "ok"]
+    settled = [c[f"pid_g-wn{w}"]["whole"]["settled_mean_um"] for w in ok]
+    assert settled == sorted(settled, reverse=True)
+    assert (c["pid_g-wn20"]["busiest"]["settled_mean_um"]
+            < c["pid-wn20"]["busiest"]["settled_mean_um"])
