@@ -4,9 +4,9 @@ Reads README.md and docs/**/*.md from the project root (the current folder: DVC 
 stages from there), the metrics files under ``<paths.data>/metrics`` and params.yaml, and
 the exemptions in docs/certify.yaml (see ``tattotronix.report.certify``). Writes
 ``<paths.data>/certify.json`` (beside the metrics folder it reads, not in it): the
-counts (documents, figures, traced, exempted, links, sources; failures 0). Any failure (a figure that traces to no number, a stale or
-reasonless exemption, a broken link, image or anchor) stops the stage with the list, exit
-code 2, and nothing written.
+counts (documents, figures, traced, exempted, links, sources; failures 0). Any failure
+(a figure that traces to no number, a stale or reasonless exemption, a broken link, image
+or anchor) stops the stage with the list, exit code 2, and nothing written.
 
 A link to a file a stage produces (a figure under data/figures/) must exist: run this
 stage after the pipeline (``dvc repro`` orders it so).

@@ -70,7 +70,7 @@ def test_sweep_suffix_names_the_other_overrides_only_in_a_multirun() -> None:
 def test_chord_error_on_a_circle_is_the_sagitta(radius: float, step: float) -> None:
     th = np.linspace(0.0, 2 * np.pi, 20001)
     circle = np.column_stack([radius * np.cos(th), radius * np.sin(th)])
-    sagitta = radius * (1 - np.cos(np.arcsin(step / (2 * radius))))  # ~ h^2 / 8R
+    sagitta = radius * (1 - np.cos(step / (2 * radius)))  # arc-length step h: ~ h^2 / 8R
     assert chord_error_mm(circle, step) == pytest.approx(sagitta, rel=2e-3)
 
 
@@ -80,8 +80,8 @@ def test_chord_error_of_a_straight_line_and_of_its_own_resampling_is_zero() -> N
     th = np.linspace(0.0, 2 * np.pi, 4001)
     dense = np.column_stack([5 * np.cos(th), 5 * np.sin(th)])
     coarse = resample(dense, 0.6)
-    # the chords of a polyline resampled at its own vertices are the polyline itself
-    assert chord_error_mm(coarse, 1e-3) < 1e-9
+    # resampled finely, a polyline's chords cut its corners by at most ~h * angle / 2
+    assert chord_error_mm(coarse, 1e-3) < 1e-4
     assert chord_error_mm(dense[:2], 0.6) == 0.0
 
 

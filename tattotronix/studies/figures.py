@@ -12,6 +12,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -84,8 +85,8 @@ def control_figure(cases: Cases, path: Path, title: str = "") -> None:
     for w, c in sweep:
         verdict = (c.get("whole") or {}).get("verdict", "?")
         if verdict != "ok":
-            ax.annotate(verdict, (w, _v(c, "whole", "peak_torque_nm")), fontsize=7,
-                        color=_VERDICT_COLOUR.get(verdict, "k"))
+            ax.annotate(f"{verdict} ", (w, _v(c, "whole", "peak_torque_nm")), fontsize=7,
+                        color=_VERDICT_COLOUR.get(verdict, "k"), ha="right", va="center")
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("wn, rad/s")
@@ -164,7 +165,7 @@ def resample_figure(cases: Cases, path: Path, title: str = "") -> None:
     ax2.set_ylabel("points")
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = ax2.get_legend_handles_labels()
-    ax.legend(h1 + h2, l1 + l2, fontsize=8, loc="upper left")
+    ax.legend(h1 + h2, l1 + l2, fontsize=8, loc="center right")
     fig.suptitle(f"Resample study{': ' + title if title else ''} (section 2.11; whole "
                  "drawing)")
     fig.tight_layout()
@@ -193,7 +194,7 @@ def rate_figure(cases: Cases, path: Path, title: str = "") -> None:
                     f"worst {w.get('marking_max_um', float('nan')):.1f} um\n"
                     f"peak {w.get('peak_torque_nm', float('nan')):.3f} N m")
         else:
-            body = f"{w.get('reason', '')[:38]}"
+            body = textwrap.fill(str(w.get("reason", "")).split(" (")[0], 30)
         ax.text(j, i, f"{verdict}  (wn T {chk['wnT']:.2f})\n{body}", ha="center",
                 va="center", fontsize=7)
     ax.set_xlim(-0.5, len(wns) - 0.5)
@@ -213,17 +214,24 @@ def rate_figure(cases: Cases, path: Path, title: str = "") -> None:
     if cases:
         b = next(iter(cases.values()))["verdict_check"]["boundary_wnT"]
         bx.axvline(b, color="0.3", ls="--", lw=1)
-        bx.text(b, rates[-1] * 1.3, f" 2/(3 lambda_max) = {b:.3f}", fontsize=8)
+        bx.text(b, rates[0] * 0.72, f" exact hold: 2/(3 lambda_max) = {b:.3f}", fontsize=8)
     for v, col in _VERDICT_COLOUR.items():
         bx.scatter([], [], color=col, edgecolor="k", label=v)
     bx.plot([], [], color="k", lw=2, label="boundary with the plant's Euler sub-steps")
+    from matplotlib.ticker import NullFormatter
+
     bx.set_yscale("log")
     bx.set_xscale("log")
+    bx.set_ylim(rates[0] * 0.6, rates[-1] * 1.4) if rates else None
     bx.set_yticks(rates, [f"{r:g}" for r in rates])
+    bx.yaxis.set_minor_formatter(NullFormatter())
+    ticks = sorted({round(float(c["verdict_check"]["wnT"]), 2) for c in cases.values()})
+    bx.set_xticks(ticks, [f"{t:g}" for t in ticks])
+    bx.xaxis.set_minor_formatter(NullFormatter())
     bx.set_xlabel("wn T")
     bx.set_ylabel("loop rate, Hz")
     bx.set_title("verdict against the computed sampled-loop boundary")
-    bx.legend(fontsize=8, loc="lower left")
+    bx.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     bx.grid(True, which="both", alpha=0.3)
     fig.suptitle(f"Rate study{': ' + title if title else ''} (section 5.8; pid_g_v)")
     fig.tight_layout()
@@ -298,6 +306,13 @@ def study_summary(data: Path, name: str) -> dict[str, Any]:
         enough = next(a for a, c in rows if _v(c, "whole", "entry_max_um") <= 1.1 * best)
         out["approach"] = {"cases": len(approach), "best_entry_max_um": best,
                            "shortest_within_10pct_mm": enough}
+    resample = load_cases(data, "resample", name)
+    if resample:
+        out["resample"] = {
+            f"{step:g}mm": {"chord_error_um": float(c["chord"]["chord_error_um"]),
+                            "marking_max_um": _v(c, "whole", "marking_max_um"),
+                            "points": int(c["drawing"]["points"])}
+            for step, c in _sorted_by(resample, "toolpath.step_mm")}
     rate = load_cases(data, "rate", name)
     if rate:
         checks = [c["verdict_check"] for c in rate.values()]

@@ -223,7 +223,8 @@ def run_case(study: str, cfg: Any, out: Outputs) -> dict[str, Any]:
             check = check or m["boundary"]
         windows[label] = m
         series.update({f"{label}_{k}": v for k, v in s.items()})
-        analysis, controller = loop.analysis, loop.controller.summary()
+        if not analysis:  # the loop facts of the first window (the whole drawing)
+            analysis, controller = loop.analysis, loop.controller.summary()
         log.info("%s %s %s (%s): %s; settled %s / marking max %s um, peak %.3f N m", study,
                  name, case, label, m["verdict"], _fmt(m["settled_mean_um"]),
                  _fmt(m["marking_max_um"]), m["peak_torque_nm"])
