@@ -70,6 +70,10 @@ def code_version(root: Path | None = None) -> str:
         return "unknown"
 
 
+#: overrides that say where outputs go, not what they are: never part of a name
+_WHERE_KEYS = ("paths.data",)
+
+
 class Outputs:
     """Where a stage writes, with every file written atomically as one transaction.
 
@@ -90,8 +94,10 @@ class Outputs:
         out), so that the jobs of a sweep never write the same file; "" otherwise."""
         if not self.sweep_overrides:
             return ""
+        skip = (*ignore, *_WHERE_KEYS)
         keep = [o.replace("/", "_") for o in self.sweep_overrides
-                if o.split("=", 1)[0].lstrip("+~") not in ignore]
+                if o.split("=", 1)[0].lstrip("+~") not in skip
+                and not o.startswith("hydra")]
         return "@" + ",".join(sorted(keep)) if keep else ""
 
     def path(self, *parts: str) -> Path:

@@ -60,7 +60,7 @@ def test_sweep_suffix_names_the_other_overrides_only_in_a_multirun() -> None:
     cfg = compose()
     assert Outputs(cfg).sweep_suffix() == ""
     out = Outputs(cfg, ["controller.wn=40", "plant.damping=0.01", "paths.data=a/b"])
-    assert out.sweep_suffix(("controller.wn",)) == "@paths.data=a_b,plant.damping=0.01"
+    assert out.sweep_suffix(("controller.wn",)) == "@plant.damping=0.01"  # not where
     assert Outputs(cfg, ["controller.wn=40"]).sweep_suffix(("controller.wn",)) == ""
 
 
@@ -117,8 +117,9 @@ def test_approach_and_resample_cases_replan_the_path(draw_data: Path) -> None:
     assert a["4.0mm"]["drawing"]["duration_s"] > a["0.0mm"]["drawing"]["duration_s"]
     assert a["4.0mm"]["whole"]["entry_max_um"] < a["0.0mm"]["whole"]["entry_max_um"]
     res = load_cases(draw_data, "resample", "small")["0.6mm"]
-    # a 0.6 mm chord on the ring's ~4 mm radius: sagitta ~ h^2 / 8R ~ 11 um
-    assert 2.0 < res["chord"]["chord_error_um"] < 60.0
+    # 0.6 mm chords: ~11 um on the ring (R ~ 4 mm), but ~75 um on the 0.6 mm dot and
+    # more at the square's smoothed corners; always below a chord's own length
+    assert 10.0 < res["chord"]["chord_error_um"] < 300.0
     assert res["drawing"]["points"] < a["4.0mm"]["drawing"]["points"]
 
 
@@ -139,9 +140,11 @@ def test_multirun_sweeps_in_parallel_with_joblib(draw_data: Path) -> None:
     r = _stage("control", draw_data, "controller.structure=pid_g_v",
                "controller.wn=40,160", multirun=True)
     assert r.returncode == 0, r.stderr
-    assert "JoblibLauncher" in r.stdout + r.stderr
-    assert sorted(load_cases(draw_data, "control", "small")) == ["pid_g_v-wn160",
-                                                               "pid_g_v-wn40"]
+    assert "Joblib.Parallel" in r.stdout + r.stderr
+    # each job names its case; the fixed overrides of the small drawing are named too
+    small = "@" + ",".join(sorted(SMALL))
+    assert sorted(load_cases(draw_data, "control", "small")) == [
+        "pid_g_v-wn160" + small, "pid_g_v-wn40" + small]
 
 
 @pytest.mark.slow
@@ -160,7 +163,8 @@ def test_the_cluster_sweep_runs_through_submitit(draw_data: Path, tmp_path: Path
                "controller.wn=40,80", multirun=True)
     assert r.returncode == 0, r.stderr
     cases = load_cases(draw_data, "rate", "small")
-    assert sorted(cases) == ["1000hz-wn40", "1000hz-wn80"]
+    small = "@" + ",".join(sorted(SMALL))
+    assert sorted(cases) == ["1000hz-wn40" + small, "1000hz-wn80" + small]
     assert all(c["verdict_check"]["verdict"] == "ok" for c in cases.values())
 
 
