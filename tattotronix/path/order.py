@@ -1,7 +1,8 @@
 """Stroke ordering: the original's rule, and ours (greedy, then 2-opt and seam moves).
 
 The objective is the planned time spent between strokes (:mod:`tattotronix.path.costs`):
-a needle entry costs about 0.92 s at the default feeds (55 mm of travel), so the search
+a needle entry costs over half a second at the default feeds (the lift, the travel back
+down and the slow approach at the marking feed: 36 mm of travel), so the search
 mostly trades entries for drags along ink, then shortens the travel.
 
 Ours:
