@@ -2,7 +2,7 @@
 
 The objective is the planned time spent between strokes (:mod:`tattotronix.path.costs`):
 a needle entry costs over half a second at the default feeds (the lift, the travel back
-down and the slow approach at the marking feed: 36 mm of travel), so the search
+down and the slow approach at the marking feed), so the search
 mostly trades entries for drags along ink, then shortens the travel.
 
 Ours:
