@@ -106,6 +106,22 @@ def _sorted_by(cases: Cases, key: str) -> list[tuple[float, Mapping[str, Any]]]:
                   key=lambda x: x[0])
 
 
+def _log_axes_with_twin(ax: Any, xlabel: str, ylabel: str, x: list[float],
+                        twin_y: list[float], twin_label: str, twin_ylabel: str,
+                        legend_loc: str) -> None:
+    """Log-scale errors on ``ax``, a dotted cost curve on a twin axis, one legend."""
+    ax.set_yscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.grid(True, which="both", alpha=0.3)
+    ax2 = ax.twinx()
+    ax2.plot(x, twin_y, "d:", color="0.3", label=twin_label)
+    ax2.set_ylabel(twin_ylabel)
+    h1, l1 = ax.get_legend_handles_labels()
+    h2, l2 = ax2.get_legend_handles_labels()
+    ax.legend(h1 + h2, l1 + l2, fontsize=8, loc=legend_loc)
+
+
 def approach_figure(cases: Cases, path: Path, title: str = "") -> None:
     """Worst entry error, worst marking and settled mean (um), and the cycle time (s),
     against the approach length; saved as a PNG."""
@@ -119,17 +135,10 @@ def approach_figure(cases: Cases, path: Path, title: str = "") -> None:
             label="worst marking")
     ax.plot(a, [_v(c, "whole", "settled_mean_um") for _, c in rows], "^-", color="#3b6fb6",
             label="settled mean")
-    ax.set_yscale("log")
-    ax.set_xlabel("approach length (last stretch of each plunge at the marking feed), mm")
-    ax.set_ylabel("tip error, um")
-    ax.grid(True, which="both", alpha=0.3)
-    ax2 = ax.twinx()
-    ax2.plot(a, [float(c["drawing"]["duration_s"]) for _, c in rows], "d:", color="0.3",
-             label="cycle time")
-    ax2.set_ylabel("cycle time, s")
-    h1, l1 = ax.get_legend_handles_labels()
-    h2, l2 = ax2.get_legend_handles_labels()
-    ax.legend(h1 + h2, l1 + l2, fontsize=8, loc="upper center")
+    _log_axes_with_twin(ax, "approach length (last stretch of each plunge at the marking "
+                        "feed), mm", "tip error, um", a,
+                        [float(c["drawing"]["duration_s"]) for _, c in rows], "cycle time",
+                        "cycle time, s", "upper center")
     ctl = next(iter(cases.values()))["controller"] if cases else {}
     fig.suptitle(f"Approach study{': ' + title if title else ''} (section 5.7; whole "
                  f"drawing, {ctl.get('structure', '?')} at wn {ctl.get('wn', '?')} rad/s)")
@@ -155,17 +164,9 @@ def resample_figure(cases: Cases, path: Path, title: str = "") -> None:
         res_um = float(rows[0][1]["chord"]["mask_res_mm"]) * 1000.0
         ax.axhline(res_um, color="0.5", lw=0.8, ls=":")
         ax.text(h[0], res_um, f" mask pixel {res_um:g} um", fontsize=7, va="bottom")
-    ax.set_yscale("log")
-    ax.set_xlabel("point step, mm")
-    ax.set_ylabel("um")
-    ax.grid(True, which="both", alpha=0.3)
-    ax2 = ax.twinx()
-    ax2.plot(h, [int(c["drawing"]["points"]) for _, c in rows], "d:", color="0.3",
-             label="trajectory points")
-    ax2.set_ylabel("points")
-    h1, l1 = ax.get_legend_handles_labels()
-    h2, l2 = ax2.get_legend_handles_labels()
-    ax.legend(h1 + h2, l1 + l2, fontsize=8, loc="center right")
+    _log_axes_with_twin(ax, "point step, mm", "um", h,
+                        [float(c["drawing"]["points"]) for _, c in rows],
+                        "trajectory points", "points", "center right")
     fig.suptitle(f"Resample study{': ' + title if title else ''} (section 2.11; whole "
                  "drawing)")
     fig.tight_layout()
