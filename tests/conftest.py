@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import subprocess
 import sys
 from pathlib import Path
 
@@ -72,3 +73,27 @@ def draw_data(tmp_path: Path, desc: RobotDescription) -> Path:
 def models(desc: RobotDescription, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """URDF and MJCF files of the default description."""
     return write_models(desc, tmp_path_factory.mktemp("models"))
+
+
+def stage_env() -> dict[str, str]:
+    """The environment of a stage run by hand (not by DVC), with one-line errors."""
+    env = dict(os.environ)
+    env.pop("DVC_STAGE", None)
+    env["HYDRA_FULL_ERROR"] = "0"
+    return env
+
+
+def run_side_by_side(stage: str, folders: dict[str, Path], *overrides: str
+                     ) -> dict[str, tuple[subprocess.CompletedProcess[str], Path]]:
+    """``python stages/<stage>.py paths.data=<folder> [overrides]`` for every folder, run
+    at the same time; key -> (the finished run, its data folder)."""
+    procs = {key: subprocess.Popen(
+        [PYTHON, f"stages/{stage}.py", f"paths.data={d}", *overrides], cwd=ROOT,
+        env=stage_env(), text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        for key, d in folders.items()}
+    out = {}
+    for key, proc in procs.items():
+        stdout, stderr = proc.communicate(timeout=300)
+        out[key] = (subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr),
+                    folders[key])
+    return out

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import os
 import subprocess
 from pathlib import Path
 from typing import Any
@@ -37,7 +36,7 @@ from tattotronix.studies.actuator import (
 )
 from tattotronix.trajectory import MARK, TRAVEL, StoredTrajectory, load_trajectory
 
-from .conftest import PYTHON, ROOT, small_art
+from .conftest import ROOT, run_side_by_side, small_art
 
 SMALL = ["mask.width_mm=24", "mask.min_region_mm2=0.5"]
 OPTIONS = ("as built, PCA9685 at 50 Hz", "as built, Arduino Servo library",
@@ -267,13 +266,6 @@ def test_metrics_keys_and_plain_values(result: ActuatorStudy) -> None:
 
 # --- the stage -----------------------------------------------------------------------------
 
-def _stage_env() -> dict[str, str]:
-    env = dict(os.environ)
-    env.pop("DVC_STAGE", None)
-    env["HYDRA_FULL_ERROR"] = "0"
-    return env
-
-
 def _assert_close(a: Any, b: Any, path: str = "") -> None:
     """Equal structure; floats equal to 1e-12 (relative or absolute)."""
     if isinstance(a, dict):
@@ -303,16 +295,8 @@ def stage_runs(tmp_path_factory: pytest.TempPathFactory,
     art = small_art(base / "small.png")
     traj = plan_drawing(compose(SMALL), art, "small", desc)
     traj.save_npz(good / "trajectories" / "small.npz", "{}")
-    procs = {key: subprocess.Popen(
-        [PYTHON, "stages/actuator.py", f"paths.data={d}", "artwork.name=small", *SMALL],
-        cwd=ROOT, env=_stage_env(), text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-        for key, d in (("good", good), ("empty", empty))}
-    out = {}
-    for key, proc in procs.items():
-        stdout, stderr = proc.communicate(timeout=300)
-        out[key] = (subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr),
-                    good if key == "good" else empty)
-    return out
+    return run_side_by_side("actuator", {"good": good, "empty": empty},
+                            "artwork.name=small", *SMALL)
 
 
 def test_stage_writes_metrics_series_and_figure(stage_runs: Any, chain: Chain) -> None:

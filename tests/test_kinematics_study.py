@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 import subprocess
 from pathlib import Path
 
@@ -24,7 +23,7 @@ from tattotronix.studies.kinematics import (
     zero_pose_frames,
 )
 
-from .conftest import PYTHON, ROOT
+from .conftest import run_side_by_side
 
 ORIGIN_M = np.array([0.21, 0.0, 0.005])
 REACH_PCT = 98.419  # reference section 3.4: 747 of 759 cells
@@ -181,13 +180,6 @@ def test_placement_sweep_pairs_widths_and_offsets(chain: Chain, logo: SyntheticP
 
 # --- the stage ---------------------------------------------------------------------------
 
-def _stage_env() -> dict[str, str]:
-    env = dict(os.environ)
-    env.pop("DVC_STAGE", None)
-    env["HYDRA_FULL_ERROR"] = "0"
-    return env
-
-
 def _write_ik(data: Path, desc: RobotDescription, chain: Chain) -> None:
     """A synthetic ``data/ik/test.npz`` as the ik stage writes it (a small logo)."""
     path = stroke_path(logo_like_strokes(width_mm=100.0), step_mm=1.0)
@@ -208,16 +200,7 @@ def stage_runs(tmp_path_factory: pytest.TempPathFactory, desc: RobotDescription,
     good, empty = base / "good", base / "empty"
     _write_ik(good, desc, chain)
     empty.mkdir()
-    procs = {key: subprocess.Popen(
-        [PYTHON, "stages/kinematics.py", f"paths.data={d}", "artwork.name=test"], cwd=ROOT,
-        env=_stage_env(), text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-        for key, d in (("good", good), ("empty", empty))}
-    out = {}
-    for key, proc in procs.items():
-        stdout, stderr = proc.communicate(timeout=300)
-        out[key] = (subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr),
-                    good if key == "good" else empty)
-    return out
+    return run_side_by_side("kinematics", {"good": good, "empty": empty}, "artwork.name=test")
 
 
 def test_stage_writes_metrics_and_figures(stage_runs) -> None:

@@ -15,10 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from tattotronix.path.kinds import APPROACH, MARK, TRAVEL
+
 __all__ = ["SyntheticPath", "logo_like_strokes", "raster_strokes", "stroke_path"]
 
 Array = NDArray[np.float64]
-TRAVEL, MARK, APPROACH = 0, 1, 2
 
 
 @dataclass(frozen=True)

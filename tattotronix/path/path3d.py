@@ -29,7 +29,7 @@ from tattotronix.path.polyline import resample
 
 __all__ = ["APPROACH", "MARK", "TRAVEL", "Path3D", "build_path"]
 
-TRAVEL, MARK, APPROACH = 0, 1, 2
+from tattotronix.path.kinds import APPROACH, MARK, TRAVEL
 
 
 @dataclass(frozen=True)

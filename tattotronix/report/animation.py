@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from tattotronix.path.kinds import APPROACH, MARK, TRAVEL
 from tattotronix.report.figures import arm_poses
 from tattotronix.robot.description import RobotDescription
 from tattotronix.stage import TattotronixError
@@ -43,7 +44,6 @@ log = logging.getLogger("tattotronix.animation")
 
 Array = NDArray[np.float64]
 MM = 1000.0
-TRAVEL, MARK, APPROACH = 0, 1, 2
 #: Video length for the whole drawing, s (the original: 557 s in 24 s).
 VIDEO_S = 24.0
 #: MP4 frame rate, frames/s (the GIF takes every other frame).

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from tattotronix.path.kinds import MARK
 from tattotronix.robot.description import RobotDescription
 from tattotronix.stage import Outputs, TattotronixError
 from tattotronix.studies.kinematics import _proxy, _pyplot
@@ -71,7 +72,6 @@ JOINT_COLOURS = ("#1971c2", "#e8590c", "#2b8a3e", "#c2255c", "#7048e8", "#495057
 MARK_SHADE = "#fff3bf"  # marking stretches
 MM = 1000.0
 UM = 1e6
-TRAVEL, MARK, APPROACH = 0, 1, 2
 #: Tip errors below this are drawn at it on log axes, um.
 ERROR_FLOOR_UM = 1e-2
 

@@ -73,6 +73,7 @@ from tattotronix.kinematics.ik import (
     SEED,
     TOL,
 )
+from tattotronix.path.kinds import TRAVEL
 from tattotronix.robot.description import RobotDescription
 from tattotronix.stage import TattotronixError
 
@@ -121,7 +122,6 @@ WORKSPACE_SAMPLES = _DEFAULTS.workspace_samples
 #: RNG seed of the workspace samples (reference: 0).
 WORKSPACE_SEED = _DEFAULTS.workspace_seed
 
-TRAVEL = 0  # path kind codes (toolpath stage): 0 travel, 1 mark, 2 approach
 MM = 1000.0
 
 

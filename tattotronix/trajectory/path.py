@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.kinematics import Chain, solve_path
+from tattotronix.path.kinds import APPROACH, MARK, TRAVEL
 from tattotronix.stage import TattotronixError
 
 __all__ = [
@@ -43,7 +44,6 @@ __all__ = [
 ]
 
 Array = NDArray[np.float64]
-TRAVEL, MARK, APPROACH = 0, 1, 2
 #: segment kinds (same codes): 1 marking, 2 approach, 0 travel
 _IK_KEYS = ("joints", "q", "tcp", "kind", "uvz_mm")
 
