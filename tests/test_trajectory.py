@@ -28,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from tattotronix.config.params import compose
@@ -386,6 +386,8 @@ def test_corners_slow_the_law_within_the_limits() -> None:
 @settings(max_examples=30, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 2**32 - 1), n=st.integers(3, 300),
        cap=st.floats(0.001, 1.0), accel=st.floats(0.5, 50.0))
+# found by hypothesis: the forward pass met a point it could not leave, and stalled there
+@example(seed=984225, n=45, cap=1.0, accel=1.0)
 def test_time_law_respects_limits_on_random_paths(seed: int, n: int, cap: float,
                                                   accel: float) -> None:
     rng = np.random.default_rng(seed)

@@ -53,6 +53,7 @@ from tattotronix.stage import TattotronixError
 __all__ = ["JointLimits", "TimeLaw", "time_parameterise"]
 
 Array = NDArray[np.float64]
+_MAX_PASSES = 50  # forward/backward repeats before giving up (one on real paths)
 _REL_TOL = 1e-9  # rounding slack in the feasibility tests (relative to a limit)
 _SHRINK = 1.0 - 1e-9  # the limits the passes use, relative to the true ones
 
@@ -184,6 +185,47 @@ def _feasible(p: Array, q: Array, a: Array, x0: Array, x1: Array) -> NDArray[np.
     return np.all(lhs <= a * (1.0 + _REL_TOL) + 1e-300, axis=1)
 
 
+def _passes(cap: Array, p: Array, q: Array, a2: Array, fa: Array, fb: Array, ba: Array,
+            bb: Array) -> tuple[Array, int]:
+    """One forward and one backward pass under ``cap``: (x = sdot^2 per point, points
+    stepped one at a time)."""
+    n_pts = len(cap)
+    stepped = 0
+    x = np.empty(n_pts)
+    x[0] = 0.0
+    ok = _feasible(p, q, a2, cap[:-1], cap[1:])
+    bad = np.flatnonzero(~ok)
+    i = 0
+    while i < n_pts - 1:
+        if x[i] == cap[i] and ok[i]:
+            k = int(np.searchsorted(bad, i))
+            j = int(bad[k]) if k < len(bad) else n_pts - 1
+            x[i + 1:j + 1] = cap[i + 1:j + 1]
+            i = j
+            continue
+        y = float(np.min(fa[i] + fb[i] * x[i]))
+        # y < 0: nothing is reachable from x_i; the backward pass slows x_i instead
+        x[i + 1] = min(cap[i + 1], y) if y > 0 else cap[i + 1]
+        stepped += 1
+        i += 1
+
+    fwd = x.copy()
+    ok = _feasible(p, q, a2, fwd[:-1], fwd[1:])
+    bad = np.flatnonzero(~ok)
+    i = n_pts - 2
+    while i >= 0:
+        if x[i + 1] == fwd[i + 1] and ok[i]:
+            k = int(np.searchsorted(bad, i, side="right")) - 1
+            i = int(bad[k]) if k >= 0 else -1
+            continue
+        y = float(np.min(ba[i] + bb[i] * x[i + 1]))
+        x[i] = min(fwd[i], max(y, 0.0))
+        stepped += 1
+        i -= 1
+    x[0] = 0.0
+    return x, stepped
+
+
 def time_parameterise(s: Array, dq: Array, d2q: Array, sdot_cap: Array,
                       limits: JointLimits) -> TimeLaw:
     """The fastest rest-to-rest time law along a path under the caps and joint limits.
@@ -230,38 +272,17 @@ def time_parameterise(s: Array, dq: Array, d2q: Array, sdot_cap: Array,
     ba, bb = _bound(p, q, a2)  # backward: x_i <= ba + bb x_{i+1}
     stepped = 0
 
-    # forward pass
-    x = np.empty(n_pts)
-    x[0] = 0.0
-    ok = _feasible(p, q, a2, cap[:-1], cap[1:])
-    bad = np.flatnonzero(~ok)
-    i = 0
-    while i < n_pts - 1:
-        if x[i] == cap[i] and ok[i]:
-            k = int(np.searchsorted(bad, i))
-            j = int(bad[k]) if k < len(bad) else n_pts - 1
-            x[i + 1:j + 1] = cap[i + 1:j + 1]
-            i = j
-            continue
-        y = float(np.min(fa[i] + fb[i] * x[i]))
-        x[i + 1] = min(cap[i + 1], max(y, 0.0))
-        stepped += 1
-        i += 1
-
-    # backward pass
-    fwd = x.copy()
-    ok = _feasible(p, q, a2, fwd[:-1], fwd[1:])
-    bad = np.flatnonzero(~ok)
-    i = n_pts - 2
-    while i >= 0:
-        if x[i + 1] == fwd[i + 1] and ok[i]:
-            k = int(np.searchsorted(bad, i, side="right")) - 1
-            i = int(bad[k]) if k >= 0 else -1
-            continue
-        y = float(np.min(ba[i] + bb[i] * x[i + 1]))
-        x[i] = min(fwd[i], max(y, 0.0))
-        stepped += 1
-        i -= 1
+    # Forward then backward pass. Where the forward pass finds no reachable next state
+    # (x_i too fast for what follows), it leaves the next point at its cap and the
+    # backward pass slows x_i; the passes repeat on the slower profile until every
+    # interval is feasible (once, on every path but the most jagged).
+    upper = cap
+    for _ in range(_MAX_PASSES):
+        x, n_stepped = _passes(upper, p, q, a2, fa, fb, ba, bb)
+        stepped += n_stepped
+        if np.all(_feasible(p, q, a2, x[:-1], x[1:])) or np.array_equal(x, upper):
+            break
+        upper = x
     x[0] = 0.0
 
     sdot = np.sqrt(x)
