@@ -17,15 +17,23 @@ from run import Row, median_time
 from tattotronix.config.params import compose
 from tattotronix.kinematics import Chain, solve_path
 from tattotronix.kinematics.synthetic import logo_like_strokes, stroke_path
+from tattotronix.pipeline import travel_planner
 from tattotronix.robot.description import build_description
-from tattotronix.trajectory import JointLimits, JointPath, TrajectoryParams, plan_trajectory
+from tattotronix.trajectory import (
+    JointLimits,
+    JointPath,
+    TrajectoryParams,
+    TravelPlanner,
+    plan_trajectory,
+)
 
 EMBLEM = Path(__file__).resolve().parents[1] / "data" / "ik" / "emblem.npz"
 
 
 def _rows(label: str, path: JointPath, chain: Chain, limits: JointLimits,
-          params: TrajectoryParams, repeat: int) -> list[Row]:
-    t, traj = median_time(lambda: plan_trajectory(path, chain, limits, params), repeat)
+          params: TrajectoryParams, planner: TravelPlanner, repeat: int) -> list[Row]:
+    t, traj = median_time(lambda: plan_trajectory(path, chain, limits, params,
+                                                  planner=planner), repeat)
     m = traj.metrics()
     law = traj.timings_s["time_law"]
     return [
@@ -39,6 +47,10 @@ def _rows(label: str, path: JointPath, chain: Chain, limits: JointLimits,
          f"goal 1.10, original 1.31"),
         (f"fastest speed [{label}]", m["fastest_speed"] or float("nan"), "x",
          f"limited by {m['fastest_speed_joint']} {m['fastest_speed_limited_by']}"),
+        (f"planned travel saving [{label}]", m["travel_saved_s"], "s",
+         f"{m['hops']} hops in {m['hop_s']:.2f} s against {m['hop_straight_s']:.2f} s straight "
+         f"at {m['straight_feed_mm_s']:g} mm/s; travel planning "
+         f"{traj.timings_s['travel'] * 1000:.0f} ms"),
     ]
 
 
@@ -48,9 +60,11 @@ def bench(repeat: int) -> list[Row]:
     chain = Chain.from_description(desc)
     params = TrajectoryParams.from_config(cfg)
     limits = JointLimits.from_description(desc, params.accel_rad_s2)
+    planner = travel_planner(cfg, desc, chain, limits)
     rows: list[Row] = []
     if EMBLEM.exists():
-        rows += _rows("emblem", JointPath.from_npz(EMBLEM), chain, limits, params, repeat)
+        rows += _rows("emblem", JointPath.from_npz(EMBLEM), chain, limits, params, planner,
+                      repeat)
     else:
         rows.append(("plan [emblem]", float("nan"), "s",
                      "data/ik/emblem.npz missing: run stages/ik.py"))
@@ -58,5 +72,5 @@ def bench(repeat: int) -> list[Row]:
     res = solve_path(chain, sp.xyz_m)
     tcp, _ = chain.fk(res.q)
     synthetic = JointPath.from_arrays(chain.joint_names, res.q, tcp, sp.kind, sp.uvz_mm)
-    rows += _rows("16k synthetic", synthetic, chain, limits, params, repeat)
+    rows += _rows("16k synthetic", synthetic, chain, limits, params, planner, repeat)
     return rows

@@ -1,6 +1,8 @@
 """Stage `deploy`: compile a trajectory into the servo program (PCA9685 counts per frame).
 
-Reads data/trajectories/<name>.npz and the servo calibration (conf/hardware, or
+Reads data/trajectories/<name>.npz, the collision stage's verdict on it
+(data/metrics/collision/<name>.json: refuses a trajectory that was not checked, or not
+clean) and the servo calibration (conf/hardware, or
 hardware.calibration_file); writes data/deploy/<name>.npz (t, q, counts, channels,
 frame_hz, count_us) and data/metrics/deploy/<name>.json: frames, the largest count step
 per channel, the quantisation error per joint (deg) and the tip error it implies.
@@ -14,6 +16,7 @@ import numpy as np
 from omegaconf import DictConfig
 
 from tattotronix.art.artwork import artwork_name
+from tattotronix.collision.check import require_checked
 from tattotronix.hardware.arm import build_program
 from tattotronix.kinematics import Chain
 from tattotronix.robot.description import build_description
@@ -26,7 +29,9 @@ log = logging.getLogger("tattotronix.deploy")
 def main(cfg: DictConfig, out: Outputs) -> None:
     """Compile the program of one artwork and write it with its metrics."""
     name = artwork_name(cfg.artwork)
-    traj = load_trajectory(out.require(out.path("trajectories", f"{name}.npz"), "trajectory"))
+    src = out.require(out.path("trajectories", f"{name}.npz"), "trajectory")
+    require_checked(out.path("metrics", "collision", f"{name}.json"), src)
+    traj = load_trajectory(src)
     desc = build_description(cfg.robot)
     program, calib = build_program(cfg, desc, traj.t, traj.q, traj.qd)
     np.savez_compressed(out.tmp_path(out.path("deploy", f"{name}.npz")), t=program.t,

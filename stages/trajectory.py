@@ -2,7 +2,8 @@
 
 Reads data/ik/<name>.npz and data/robot/tattotronix.urdf (hashed into the provenance);
 writes data/trajectories/<name>.npz (joints, t, q, qd, qdd, kind, marked, tcp,
-provenance) and data/metrics/trajectory/<name>.json. Refuses (writing nothing) a
+provenance) and data/metrics/trajectory/<name>.json (with planned travel, also the
+duration of the same path with straight travel lines, for comparison). Refuses (writing nothing) a
 ``speed`` that cannot hold the marking feed within the joint limits, naming the joint,
 the rate it would need and the fastest speed the drawing can go.
 """
@@ -14,7 +15,7 @@ import logging
 from omegaconf import DictConfig, OmegaConf
 
 from tattotronix.art.artwork import artwork_name
-from tattotronix.pipeline import trajectory_from_path
+from tattotronix.pipeline import straight_travel_baseline, trajectory_from_path
 from tattotronix.robot.description import build_description
 from tattotronix.stage import Outputs, code_version, run_stage
 from tattotronix.trajectory import JointPath, provenance_json
@@ -28,7 +29,8 @@ def main(cfg: DictConfig, out: Outputs) -> None:
     src = out.require(out.path("ik", f"{name}.npz"), "ik")
     desc = build_description(cfg.robot)
     urdf = out.require(out.path("robot", f"{desc.name}.urdf"), "robot")
-    traj = trajectory_from_path(cfg, JointPath.from_npz(src), desc)
+    path = JointPath.from_npz(src)
+    traj = trajectory_from_path(cfg, path, desc)
     config = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
     assert isinstance(config, dict)
     prov = provenance_json({str(k): v for k, v in config.items()},
@@ -36,6 +38,9 @@ def main(cfg: DictConfig, out: Outputs) -> None:
     target = out.path("trajectories", f"{name}.npz")
     traj.save_npz(out.tmp_path(target), prov)
     metrics = {"name": name, **traj.metrics()}
+    if traj.moves:
+        base = straight_travel_baseline(cfg, path, desc)
+        metrics["straight_travel_duration_s"] = base["duration_s"]
     out.write_json(out.path("metrics", "trajectory", f"{name}.json"), metrics)
     log.info("trajectory %s: %d points (%d inserted), %.1f s for %.1f s of marking "
              "(x%.3f), %d entries, peak %.2f rad/s, %.2f rad/s^2, fastest speed %s; "

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -23,8 +24,10 @@ from tattotronix.path.plan import plan_toolpath
 from tattotronix.robot.description import RobotDescription
 from tattotronix.trajectory import JointLimits, JointPath, Trajectory, TrajectoryParams
 from tattotronix.trajectory import plan_trajectory as _plan_trajectory
+from tattotronix.trajectory.travel import TravelPlanner
 
-__all__ = ["ik_settings", "mask_of", "plan_drawing", "solve_ik", "trajectory_from_path"]
+__all__ = ["ik_settings", "mask_of", "plan_drawing", "solve_ik", "trajectory_from_path",
+           "straight_travel_baseline", "travel_planner"]
 
 log = logging.getLogger("tattotronix.pipeline")
 
@@ -50,12 +53,41 @@ def solve_ik(chain: Chain, xyz_m: Any, uvz_mm: Any, ik: Any,
     return res
 
 
+def travel_planner(cfg: Any, desc: RobotDescription, chain: Chain,
+                   limits: JointLimits) -> TravelPlanner:
+    """The travel planner of the config: the collision model of ``desc``, the margin, the
+    clearance height and the lifts."""
+    from tattotronix.collision.model import CollisionModel
+
+    panel_top = float(desc.panel_centre[2] + desc.panel_size[2] / 2)
+    return TravelPlanner(
+        chain, limits, CollisionModel(desc), margin_m=float(cfg.collision.margin_mm) / 1000,
+        resolution_m=float(cfg.collision.resolution_mm) / 1000,
+        clearance_z_m=panel_top + float(cfg.toolpath.clearance_mm) / 1000,
+        lifts_m=[float(h) / 1000 for h in cfg.trajectory.lifts_mm],
+        max_step_m=float(cfg.trajectory.max_step_mm) / 1000, ik=ik_settings(cfg.ik))
+
+
 def trajectory_from_path(cfg: Any, path: JointPath, desc: RobotDescription) -> Trajectory:
-    """Time an IK path with the config's feeds, speed and limits (the trajectory stage)."""
+    """Time an IK path with the config's feeds, speed, limits and travel planning (the
+    trajectory stage)."""
     params = TrajectoryParams.from_config(cfg)
     limits = JointLimits.from_description(desc, params.accel_rad_s2)
-    return _plan_trajectory(path, Chain.from_description(desc), limits, params,
+    chain = Chain.from_description(desc)
+    planner = travel_planner(cfg, desc, chain, limits) if params.travel == "planned" else None
+    return _plan_trajectory(path, chain, limits, params, ik=ik_settings(cfg.ik),
+                            planner=planner, panel_origin_m=list(cfg.toolpath.panel_origin))
+
+
+def straight_travel_baseline(cfg: Any, path: JointPath, desc: RobotDescription
+                             ) -> dict[str, float]:
+    """The same path with the original's straight travel lines, timed by the same law
+    (``trajectory.travel=straight``): what planned travel is compared with."""
+    params = replace(TrajectoryParams.from_config(cfg), travel="straight")
+    limits = JointLimits.from_description(desc, params.accel_rad_s2)
+    traj = _plan_trajectory(path, Chain.from_description(desc), limits, params,
                             ik=ik_settings(cfg.ik))
+    return {"duration_s": traj.duration_s, "travel_s": traj.metrics()["travel_s"]}
 
 
 def mask_of(cfg: Any, source: str | Path | None, name: str) -> InkMask:

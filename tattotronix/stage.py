@@ -35,7 +35,8 @@ from omegaconf import DictConfig, OmegaConf
 
 from tattotronix.config.params import ConfigError, load_params
 
-__all__ = ["Outputs", "StageInputMissing", "TattotronixError", "code_version", "run_stage"]
+__all__ = ["Outputs", "StageInputMissing", "TattotronixError", "code_version", "logs_to_stderr",
+           "run_stage"]
 
 log = logging.getLogger("tattotronix")
 
@@ -159,6 +160,15 @@ class Outputs:
             self.abort()
             raise
         self.commit()
+
+
+def logs_to_stderr() -> None:
+    """Send every log line to stderr, so stdout carries only what a stage prints for
+    scripts (``collision.py pose=...`` prints one JSON object)."""
+    for handler in logging.getLogger().handlers:
+        if isinstance(handler, logging.StreamHandler) and not isinstance(
+                handler, logging.FileHandler):
+            handler.setStream(sys.stderr)
 
 
 def _setup_logging() -> None:

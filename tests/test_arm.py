@@ -261,3 +261,22 @@ def test_bad_calibration_file_names_joint_and_key(data: Path, tmp_path: Path) ->
                    "min_us: 500, max_us: 2500}\n")
     r = _arm(data, f"hardware.calibration_file={bad}")
     assert r.returncode == 2 and "joint_1" in r.stderr and "zero_us" in r.stderr
+
+
+def test_the_arm_refuses_a_colliding_drawing_before_the_bus(desc: RobotDescription) -> None:
+    """draw.py backend=arm checks whatever it is about to play (check_drawing_clear runs
+    before the program is compiled or the bus opened): a sweep of the shoulder that folds
+    the arm into the bench is refused, naming the pair; a small move near home is not."""
+    from tattotronix.collision.check import CollisionRefused
+    from tattotronix.config.params import compose
+    from tattotronix.hardware.arm import check_drawing_clear
+
+    cfg = compose()
+    t = np.linspace(0.0, 2.0, 21)
+    fold = np.zeros((21, 5))
+    fold[:, 1] = np.linspace(0.0, 1.57, 21)
+    with pytest.raises(CollisionRefused, match=r"and bench collide at t = [0-9.]+ s"):
+        check_drawing_clear(cfg, desc, t, fold)
+    near_home = np.zeros((21, 5))
+    near_home[:, 0] = np.linspace(0.0, 0.3, 21)
+    check_drawing_clear(cfg, desc, t, near_home)

@@ -70,7 +70,9 @@ def chain(desc: RobotDescription) -> Chain:
 
 @pytest.fixture(scope="module")
 def params() -> TrajectoryParams:
-    return TrajectoryParams.from_config(compose())
+    """The config's settings with straight travel: these tests are about the time law
+    along the whole path (planned travel is tested in test_travel.py)."""
+    return replace(TrajectoryParams.from_config(compose()), travel="straight")
 
 
 def _limits(desc: RobotDescription, params: TrajectoryParams) -> JointLimits:

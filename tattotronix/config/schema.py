@@ -25,6 +25,7 @@ __all__ = [
     "Backend",
     "BenchConfig",
     "BoxInertial",
+    "CollisionConfig",
     "Config",
     "ControlCase",
     "ControlStudyConfig",
@@ -260,6 +261,18 @@ class TrajectoryConfig:
     accel_rad_s2: float = 10.0  # per-joint acceleration limit (see conf/trajectory)
     jerk_rad_s3: float | None = None  # jerk limits are not implemented: must be null
     max_step_mm: float = 0.5  # longer segments (travel, lifts) get points on the tip line
+    travel: str = "planned"  # planned: joint-space moves between strokes; straight: tip lines
+    home: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0, 0.0])  # rad
+    from_home: bool = True  # planned travel: start at home and return home
+    lifts_mm: list[float] = field(default_factory=lambda: [10.0, 20.0, 40.0, 80.0])
+
+
+@dataclass
+class CollisionConfig:
+    """Collision checking (``stages/collision.py``) and the planned travel's margin."""
+
+    margin_mm: float = 1.0  # least clearance a trajectory and a planned move must keep
+    resolution_mm: float = 0.1  # bisect the motion between samples down to this bound
 
 
 class Structure(Enum):
@@ -435,6 +448,7 @@ class Config:
     toolpath: ToolpathConfig = field(default_factory=ToolpathConfig)
     ik: IkConfig = field(default_factory=IkConfig)
     trajectory: TrajectoryConfig = field(default_factory=TrajectoryConfig)
+    collision: CollisionConfig = field(default_factory=CollisionConfig)
     study: StudyConfig = field(default_factory=StudyConfig)
     controller: ControllerConfig = field(default_factory=ControllerConfig)
     plant: PlantConfig = field(default_factory=PlantConfig)
@@ -448,6 +462,7 @@ class Config:
     dry_run: bool = False  # backend=arm: a recording bus instead of the I2C device
     resume: bool = False  # backend=arm: continue a paused or failed drawing
     realtime: bool = True  # backend=arm dry run: stream at the frame rate (false: at once)
+    pose: list[float] | None = None  # collision.py: report this one pose (rad) as JSON
 
 
 SCHEMAS: dict[str, Any] = {
@@ -457,6 +472,7 @@ SCHEMAS: dict[str, Any] = {
     "toolpath": ToolpathConfig,
     "ik": IkConfig,
     "trajectory": TrajectoryConfig,
+    "collision": CollisionConfig,
     "study": StudyConfig,
     "controller": ControllerConfig,
     "plant": PlantConfig,

@@ -92,10 +92,12 @@ def _path_settings(cfg: Any) -> dict[str, Any]:
 
 
 def _timing_settings(cfg: Any) -> dict[str, Any]:
-    """The settings that time the path (speed, the time law, the marking feed)."""
+    """The settings that time the path (speed, the time law, the marking feed, the planned
+    travel's collision margin)."""
     c = _plain(cfg)
     return {"speed": float(c["speed"]), "trajectory": c["trajectory"],
-            "feed_mark_mm_s": float(c["toolpath"]["feed_mark_mm_s"])}
+            "feed_mark_mm_s": float(c["toolpath"]["feed_mark_mm_s"]),
+            "collision": c.get("collision")}
 
 
 def _differ(want: dict[str, Any], have: dict[str, Any] | None) -> list[str]:

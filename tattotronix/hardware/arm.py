@@ -1,5 +1,7 @@
 """``draw.py backend=arm``: stream a servo program to the PCA9685, safely, with resume.
 
+* Nothing reaches the bus before the drawing is proven clear of collisions with the
+  margin (:func:`check_drawing_clear`, the collision stage's check).
 * The last commanded pose lives in a state file (the servos report nothing). A session
   first ramps slowly (``hardware.ramp_rad_s``) from that pose to the start pose.
 * Frames are sent at the frame rate; only the channels whose count changed are written
@@ -32,7 +34,8 @@ from tattotronix.hardware.servos import Calibration, load_calibration
 from tattotronix.kinematics import Chain, solve_path
 from tattotronix.stage import TattotronixError
 
-__all__ = ["ArmSession", "ArmState", "Paused", "calibration_from_config", "ramp"]
+__all__ = ["ArmSession", "ArmState", "Paused", "calibration_from_config", "check_drawing_clear",
+           "ramp"]
 
 log = logging.getLogger("tattotronix.arm")
 Array = NDArray[np.float64]
@@ -376,6 +379,27 @@ def build_program(cfg: Any, desc: Any, t: Array, q: Array, qd: Array
     return program, calib
 
 
+def check_drawing_clear(cfg: Any, desc: Any, t: Array, q: Array) -> None:
+    """Refuse, before anything reaches the bus, a drawing that collides or comes within
+    ``collision.margin_mm`` (samples and the motion between them; the collision stage's
+    check, run here on whatever drawing the arm is about to play).
+
+    Raises:
+        CollisionRefused: naming the time, the pose and the pair.
+    """
+    from tattotronix.collision.check import CollisionRefused, check_trajectory
+    from tattotronix.collision.model import CollisionModel
+
+    rep = check_trajectory(CollisionModel(desc), t, q,
+                           margin_m=float(cfg.collision.margin_mm) / 1e3,
+                           plunge_m=float(cfg.toolpath.plunge_mm) / 1e3,
+                           resolution_m=float(cfg.collision.resolution_mm) / 1e3)
+    if not rep.ok:
+        raise CollisionRefused(rep)
+    log.info("arm: the drawing is clear of collisions (least clearance %.2f mm, %s)",
+             rep.min_clearance_m[rep.worst] * 1e3, rep.pair_names[rep.worst])
+
+
 def draw_on_arm(cfg: Any, out: Any) -> dict[str, Any]:
     """``draw.py backend=arm``: compile the drawing and stream it (see the module docstring).
 
@@ -391,6 +415,7 @@ def draw_on_arm(cfg: Any, out: Any) -> dict[str, Any]:
         raise TattotronixError("window= is for simulated backends; the arm draws the whole "
                                "drawing (resume=true continues a stopped one)")
     drawing = resolve_drawing(cfg, out.data, desc)
+    check_drawing_clear(cfg, desc, drawing.t, drawing.q)
     program, calib = build_program(cfg, desc, drawing.t, drawing.q, drawing.qd)
     clearance = float(cfg.toolpath.panel_origin[2]) + float(cfg.toolpath.clearance_mm) / 1e3
     speed = float(cfg.hardware.ramp_rad_s)

@@ -66,6 +66,7 @@ FIGSIZE: dict[str, tuple[float, float]] = {
     "steps": (14.0, 9.0),
     "tracking": (14.0, 8.5),
     "mass": (14.0, 6.2),
+    "clearance": (14.0, 7.0),
 }
 #: One colour per joint, base outward.
 JOINT_COLOURS = ("#1971c2", "#e8590c", "#2b8a3e", "#c2255c", "#7048e8", "#495057")
@@ -1059,3 +1060,42 @@ def draw_figures(cfg: Any, out: Outputs, name: str) -> dict[str, Path]:
     times["tracking"] = time.perf_counter() - t0
     log.info("figures %s: %s", name, ", ".join(f"{k} {v:.2f} s" for k, v in times.items()))
     return written
+
+
+def clearance_figure(pair_names: Sequence[str], series_m: ArrayLike, least_m: ArrayLike,
+                     t: ArrayLike, kind: ArrayLike, margin_m: float, path: Path,
+                     title: str = "", pairs: int = 6) -> Path:
+    """The clearance of the closest pairs along a trajectory (collision stage).
+
+    Left: each of the ``pairs`` closest pairs' clearance over time (mm, log scale), the
+    margin dashed, marking shaded. Right: every checked pair's least clearance, sorted.
+    """
+    plt, fig = _new_figure("clearance")
+    tt, ser = np.asarray(t), np.asarray(series_m) * MM
+    least = np.asarray(least_m) * MM
+    order = np.argsort(least)
+    ax = fig.add_axes((0.06, 0.1, 0.56, 0.8))
+    _shade(ax, tt, _marking(kind), "marking")
+    for i, p in enumerate(order[:pairs]):
+        ax.plot(tt, np.maximum(ser[:, p], 1e-2), lw=0.9, color=_colour(i),
+                label=f"{pair_names[p].replace('|', ' / ')} (least {least[p]:.2f} mm)")
+    ax.axhline(margin_m * MM, color="#c92a2a", ls="--", lw=1.2,
+               label=f"margin {margin_m * MM:g} mm")
+    ax.set_yscale("log")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("clearance (mm)")
+    ax.legend(loc="upper right", fontsize=8)
+    ax.set_title("closest pairs along the drawing")
+    bx = fig.add_axes((0.74, 0.1, 0.24, 0.8))
+    y = np.arange(len(order))
+    bx.barh(y, np.maximum(least[order], 1e-2), color="#1971c2")
+    bx.set_yticks(y, [pair_names[p].replace("_link", "").replace("|", " / ") for p in order],
+                  fontsize=7)
+    bx.invert_yaxis()
+    bx.set_xscale("log")
+    bx.axvline(margin_m * MM, color="#c92a2a", ls="--", lw=1.2)
+    bx.set_xlabel("least clearance (mm)")
+    bx.set_title("every checked pair")
+    if title:
+        fig.suptitle(title)
+    return _save(plt, fig, path)

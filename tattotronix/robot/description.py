@@ -132,6 +132,9 @@ class RobotDescription:
         mass_model: ``printed`` or ``box``.
         tool: ``tattoo`` or ``none``.
         bench_size, panel_centre, panel_size: world geometry, m (bench top at z = 0).
+        cad_dir: the CAD mesh folder, or None (primitive geometry).
+        pen_barrel_length: the pen's barrel from ``tool0``, m; the rest of the pen, to the
+            tip, is the needle cone (0 without the tattoo tool).
     """
 
     name: str
@@ -147,6 +150,7 @@ class RobotDescription:
     panel_centre: NDArray[np.float64]
     panel_size: NDArray[np.float64]
     cad_dir: Path | None
+    pen_barrel_length: float = 0.0
 
     @property
     def joint_names(self) -> tuple[str, ...]:
@@ -278,9 +282,14 @@ def build_description(robot: DictConfig | dict[str, Any]) -> RobotDescription:
                                        _vec(b.size, 3, f"robot.box.{link}.size")),)
 
     body_links = list(arm_links)
+    barrel = 0.0
     if tool == "tattoo":
         pen = r.pen
         length, radius = float(pen.length), float(pen.radius)
+        barrel = float(pen.barrel_length)
+        if not 0 < barrel < length:
+            raise TattotronixError(f"robot.pen.barrel_length={barrel} must lie between 0 and "
+                                   f"the pen's length {length} (m): the needle is the rest")
         frames.append(Frame(PEN_LINK, frames[0].name, np.zeros(3), np.zeros(3)))
         frames.append(Frame(str(r.tcp.name), PEN_LINK, _vec(r.tcp.xyz, 3, "robot.tcp.xyz"),
                             _vec(r.tcp.rpy, 3, "robot.tcp.rpy")))
@@ -303,4 +312,5 @@ def build_description(robot: DictConfig | dict[str, Any]) -> RobotDescription:
         panel_centre=_vec(r.panel.centre, 3, "robot.panel.centre"),
         panel_size=_vec(r.panel.size, 3, "robot.panel.size"),
         cad_dir=cad_dir,
+        pen_barrel_length=barrel if tool == "tattoo" else 0.0,
     )

@@ -16,7 +16,8 @@ from tattotronix.robot.loaders import MujocoArm, PinocchioArm, PybulletArm
 from tattotronix.robot.mjcf import to_mjcf
 from tattotronix.robot.urdf import to_urdf
 
-__all__ = ["RobotModels", "generate", "geometry_points", "zero_pose_report"]
+__all__ = ["RobotModels", "collision_pairs_report", "generate", "geometry_points",
+           "zero_pose_report"]
 
 
 @dataclass(frozen=True)
@@ -107,6 +108,23 @@ def zero_pose_report(d: RobotDescription, urdf: Path, mjcf: Path,
         "joints": {j.name: {"lower": j.lower, "upper": j.upper, "effort_nm": j.effort,
                             "velocity_rad_s": j.velocity} for j in d.joints},
         "loader_agreement": {"poses": poses, "seed": seed, **agreement},
+        "collision_pairs": collision_pairs_report(d),
+    }
+
+
+def collision_pairs_report(d: RobotDescription) -> dict[str, Any]:
+    """The allowed (never checked) collision pairs, derived from the tree, with reasons."""
+    from tattotronix.collision.pairs import body_pairs
+
+    pairs = body_pairs(d)
+    links = [p for p in pairs if not p.environment]
+    return {
+        "link_pairs": len(links),
+        "allowed_link_pairs": sum(not p.checked for p in links),
+        "checked_pairs": sum(p.checked for p in pairs),
+        "allowed": [{"pair": [p.a, p.b], "reason": p.reason} for p in pairs if not p.checked],
+        "needle": "the pen's needle cone may enter the panel (that one shape pair is not "
+                  "checked); the collision stage holds its depth to toolpath.plunge_mm",
     }
 
 

@@ -4,6 +4,8 @@
   derivatives.
 * :mod:`~tattotronix.trajectory.timelaw`: the discrete time-optimal law (velocity and
   acceleration limits, continuous velocity).
+* :mod:`~tattotronix.trajectory.travel`: planned travel (time-optimal joint-space moves
+  between strokes, from home and home again), checked for collision and clearance.
 * :mod:`~tattotronix.trajectory.plan`: feeds, the speed check and refusal, the
   :class:`Trajectory`, its metrics and ``data/trajectories/<name>.npz``.
 """
@@ -22,6 +24,7 @@ from tattotronix.trajectory.path import (
 )
 from tattotronix.trajectory.plan import (
     NPZ_KEYS,
+    MoveSummary,
     SpeedLimit,
     SpeedRefused,
     StoredTrajectory,
@@ -34,6 +37,13 @@ from tattotronix.trajectory.plan import (
     speed_limit,
 )
 from tattotronix.trajectory.timelaw import JointLimits, TimeLaw, time_parameterise
+from tattotronix.trajectory.travel import (
+    JointMove,
+    MoveSamples,
+    TravelPlanner,
+    joint_move,
+    way_home,
+)
 
 __all__ = [
     "APPROACH",
@@ -41,14 +51,19 @@ __all__ = [
     "NPZ_KEYS",
     "TRAVEL",
     "JointLimits",
+    "JointMove",
     "JointPath",
+    "MoveSamples",
+    "MoveSummary",
     "SpeedLimit",
     "SpeedRefused",
     "StoredTrajectory",
     "TimeLaw",
     "Trajectory",
     "TrajectoryParams",
+    "TravelPlanner",
     "densify",
+    "joint_move",
     "file_sha256",
     "load_trajectory",
     "path_derivatives",
@@ -58,4 +73,5 @@ __all__ = [
     "speed_limit",
     "time_parameterise",
     "turn_radii",
+    "way_home",
 ]

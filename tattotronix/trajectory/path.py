@@ -117,6 +117,20 @@ class JointPath:
     def __len__(self) -> int:
         return len(self.kind)
 
+    def slice(self, start: int, stop: int) -> JointPath:
+        """Points ``start`` to ``stop - 1`` (their ``source`` kept)."""
+        return JointPath(self.joints, self.q[start:stop], self.tcp[start:stop],
+                         self.kind[start:stop], self.uvz_mm[start:stop],
+                         self.source[start:stop])
+
+    def hops(self, clearance_mm: float) -> NDArray[np.bool_]:
+        """(N-1,) chords that are travel between strokes: both ends travel points at the
+        clearance height (``uvz_mm`` z), at different panel points."""
+        k, z = self.kind, self.uvz_mm[:, 2]
+        up = (k == TRAVEL) & (z >= clearance_mm - 1e-6)
+        apart = np.linalg.norm(np.diff(self.uvz_mm[:, :2], axis=0), axis=1) > 1e-6
+        return up[:-1] & up[1:] & apart
+
     def segment_lengths(self) -> Array:
         """(N-1,) tip chord lengths, m."""
         return np.linalg.norm(np.diff(self.tcp, axis=0), axis=1)
@@ -160,7 +174,8 @@ def segment_kinds(kind: NDArray[np.int8]) -> NDArray[np.int8]:
 
 
 def densify(path: JointPath, chain: Chain, max_step_m: float,
-            ik: Mapping[str, Any] | None = None) -> JointPath:
+            ik: Mapping[str, Any] | None = None,
+            keep: NDArray[np.bool_] | None = None) -> JointPath:
     """Split every chord longer than ``max_step_m`` into equal steps, with IK at new points.
 
     Inserted points lie on the straight line between the chord's tips; their kind is 2 if
@@ -177,6 +192,7 @@ def densify(path: JointPath, chain: Chain, max_step_m: float,
         max_step_m: the longest chord kept as is, m.
         ik: keyword arguments for ``solve_path`` (``needle_axis``, ``damping``,
             ``max_iter``, ``tol``, ``anchor_spacing_m``); its defaults otherwise.
+        keep: (N-1,) chords never split (planned travel hops), default none.
 
     Returns:
         The denser path (the same object when no chord is too long).
@@ -189,6 +205,8 @@ def densify(path: JointPath, chain: Chain, max_step_m: float,
         raise TattotronixError(f"the densify step must be > 0 m, got {max_step_m}")
     seg = path.segment_lengths()
     n_sub = np.maximum(np.ceil(seg / max_step_m - 1e-9).astype(np.int64), 1)
+    if keep is not None:
+        n_sub[np.asarray(keep, dtype=bool)] = 1
     if len(path) == 2 and n_sub[0] == 1 and seg[0] > 0:
         n_sub[0] = 2  # rest to rest over one chord needs a point in between
     long_ = np.flatnonzero(n_sub > 1)

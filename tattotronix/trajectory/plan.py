@@ -52,9 +52,11 @@ from tattotronix.trajectory.path import (
     turn_radii,
 )
 from tattotronix.trajectory.timelaw import JointLimits, TimeLaw, time_parameterise
+from tattotronix.trajectory.travel import TravelPlanner
 
 __all__ = [
     "NPZ_KEYS",
+    "MoveSummary",
     "SpeedLimit",
     "SpeedRefused",
     "StoredTrajectory",
@@ -85,6 +87,15 @@ class TrajectoryParams:
         corner_radius_m: bends tighter than this are corners, where the law may slow
             below the feed; elsewhere the feed must be held or the speed is refused, m.
         jerk_rad_s3: a jerk limit; only ``None`` (acceleration-limited) is supported.
+        travel: ``planned`` (joint-space moves between strokes, from and to home;
+            :mod:`~tattotronix.trajectory.travel`) or ``straight`` (straight tip lines at
+            clearance, timed by the time law, as the original).
+        clearance_mm: the toolpath's clearance height above the panel (finds the hops).
+        home: the home pose, rad (planned travel starts and ends there when
+            ``from_home``).
+        from_home: planned travel: start at home and return home.
+        straight_feed_m_s: the original's travel feed (``toolpath.feed_travel_mm_s``),
+            the baseline the saving of planned travel is reported against, m/s.
     """
 
     feed_mark_m_s: float = 0.006
@@ -94,6 +105,11 @@ class TrajectoryParams:
     max_step_m: float = 0.5e-3
     corner_radius_m: float = 0.6e-3
     jerk_rad_s3: float | None = None
+    travel: str = "planned"
+    clearance_mm: float = 8.0
+    home: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
+    from_home: bool = True
+    straight_feed_m_s: float = 0.060
 
     @classmethod
     def from_config(cls, cfg: Any) -> TrajectoryParams:
@@ -108,6 +124,9 @@ class TrajectoryParams:
             corner_radius_m=float(cfg.toolpath.pitch_mm) / 2000.0,
             max_step_m=float(tr.max_step_mm) / 1000.0,
             jerk_rad_s3=None if tr.jerk_rad_s3 is None else float(tr.jerk_rad_s3),
+            travel=str(tr.travel), clearance_mm=float(cfg.toolpath.clearance_mm),
+            home=tuple(float(v) for v in tr.home), from_home=bool(tr.from_home),
+            straight_feed_m_s=float(cfg.toolpath.feed_travel_mm_s) / 1000.0,
         )
 
     def validate(self) -> None:
@@ -122,6 +141,11 @@ class TrajectoryParams:
             if not (math.isfinite(value) and value > 0):
                 raise TattotronixError(f"the {name} must be a positive number, got {key}="
                                        f"{value:g}")
+        if self.travel not in ("planned", "straight"):
+            raise TattotronixError(f"trajectory.travel={self.travel!r}: choose planned or "
+                                   "straight")
+        if not all(math.isfinite(v) for v in self.home):
+            raise TattotronixError(f"trajectory.home={list(self.home)} must be finite angles")
         if self.jerk_rad_s3 is not None:
             raise TattotronixError(
                 f"trajectory.jerk_rad_s3={self.jerk_rad_s3:g}: jerk-limited profiles are not "
@@ -258,6 +282,25 @@ def _caps(seg: NDArray[np.int8], n_pts: int, mark: float, travel: float) -> Arra
 
 
 @dataclass(frozen=True)
+class MoveSummary:
+    """One planned travel move, in the trajectory (see :mod:`~.travel`).
+
+    Attributes:
+        kind: ``hop``, ``lift``, ``from_home`` or ``to_home``.
+        start_s: when it starts, s.
+        duration_s: its time, s.
+        lower_bound_s: the least time any rest-to-rest move between its poses takes, s.
+        straight_m: straight tip distance between its ends, m.
+    """
+
+    kind: str
+    start_s: float
+    duration_s: float
+    lower_bound_s: float
+    straight_m: float
+
+
+@dataclass(frozen=True)
 class Trajectory:
     """A timed joint trajectory (what ``data/trajectories/<name>.npz`` holds, and more).
 
@@ -271,14 +314,18 @@ class Trajectory:
         marked: (N,) the segment ending at each point is ink.
         tcp: (N, 3) FK tip of ``q``, m.
         uvz_mm: (N, 3) panel coordinates, mm.
-        source: (N,) index in the IK path, -1 for inserted points.
-        law: the time law (arc length, path speed, interval-end accelerations).
+        source: (N,) index in the IK path, -1 for inserted points and planned moves.
+        s: (N,) tip arc length, m.
+        tip_speed: (N,) tip speed, m/s.
+        qdd_ends: (N-1, 2, n) joint acceleration at both ends of each interval, rad/s^2.
+        laws: the time laws of the ink pieces (one for straight travel).
+        moves: the planned travel moves, in order (none for straight travel).
         limits: the joint limits it keeps.
         params: the settings it was planned with.
         speed: the speed check.
         entries: needle entries.
         marked_m: marked length, m.
-        timings_s: wall times of the steps (densify, derivatives, time law), s.
+        timings_s: wall times of the steps (densify, derivatives, time law, travel), s.
     """
 
     joints: tuple[str, ...]
@@ -291,7 +338,11 @@ class Trajectory:
     tcp: Array
     uvz_mm: Array
     source: NDArray[np.int64]
-    law: TimeLaw
+    s: Array
+    tip_speed: Array
+    qdd_ends: Array
+    laws: tuple[TimeLaw, ...]
+    moves: tuple[MoveSummary, ...]
     limits: JointLimits
     params: TrajectoryParams
     speed: SpeedLimit
@@ -300,9 +351,17 @@ class Trajectory:
     timings_s: dict[str, float] = field(default_factory=dict)
 
     @property
+    def law(self) -> TimeLaw:
+        """The one time law of a straight-travel trajectory (the whole path)."""
+        if len(self.laws) != 1 or self.moves:
+            raise AttributeError("a trajectory with planned travel has one time law per ink "
+                                 "piece: see .laws")
+        return self.laws[0]
+
+    @property
     def duration_s(self) -> float:
         """Total time, s."""
-        return self.law.duration_s
+        return float(self.t[-1]) if len(self.t) else 0.0
 
     @property
     def marking_only_s(self) -> float:
@@ -313,16 +372,40 @@ class Trajectory:
         """(N-1,) 1 marking, 2 approach, 0 travel."""
         return segment_kinds(self.kind)
 
+    def travel_metrics(self) -> dict[str, Any]:
+        """Planned travel: the moves, their time, and the saving over the original's
+        straight travel at ``toolpath.feed_travel_mm_s`` (JSON-ready)."""
+        hops = [m for m in self.moves if m.kind in ("hop", "lift")]
+        home = [m for m in self.moves if m.kind in ("from_home", "to_home")]
+        hop_s = sum(m.duration_s for m in hops)
+        base_feed = self.params.straight_feed_m_s * self.params.speed
+        straight_s = sum(m.straight_m for m in self.moves if m.kind == "hop") / base_feed
+        worst = max((m.duration_s / m.lower_bound_s for m in self.moves
+                     if m.lower_bound_s > 0), default=1.0)
+        return {
+            "travel": self.params.travel,
+            "moves": len(self.moves),
+            "hops": sum(m.kind == "hop" for m in self.moves),
+            "lifts": sum(m.kind == "lift" for m in self.moves),
+            "hop_s": hop_s,
+            "hop_straight_s": straight_s,
+            "straight_feed_mm_s": base_feed * 1000.0,
+            "travel_saved_s": straight_s - hop_s,
+            "cycle_straight_travel_s": self.duration_s - hop_s + straight_s,
+            "home_moves_s": sum(m.duration_s for m in home),
+            "move_time_over_bound_max": worst,
+        }
+
     def metrics(self) -> dict[str, Any]:
         """The stage's metrics (JSON-ready)."""
         seg = self.segment_kinds()
         dt = np.diff(self.t)
         chord = np.abs(np.diff(self.qd, axis=0)) / dt[:, None]  # mean accel per interval
         peak_v = np.abs(self.qd).max(axis=0)
-        peak_a = np.abs(self.law.qdd_ends).max(axis=(0, 1))
+        peak_a = np.abs(self.qdd_ends).max(axis=(0, 1))
         feed = self.params.feed_mark_m_s * self.params.speed
-        mean_v = 0.5 * (self.law.sdot[:-1] + self.law.sdot[1:])
-        h = np.diff(self.law.s)
+        mean_v = 0.5 * (self.tip_speed[:-1] + self.tip_speed[1:])
+        h = np.diff(self.s)
         mark = seg == MARK
         slow_len = float(h[mark & (mean_v < 0.99 * feed)].sum())
         mark_len = float(h[mark].sum())
@@ -351,10 +434,11 @@ class Trajectory:
             "feed_mark_mm_s": feed * 1000.0,
             "travel_feed_mm_s": self.params.travel_feed_m_s * self.params.speed * 1000.0,
             "marking_below_feed_pct": 100.0 * slow_len / mark_len if mark_len > 0 else 0.0,
-            "peak_tip_speed_mm_s": float(self.law.sdot.max()) * 1000.0,
-            "timelaw_stepped_points": self.law.stepped,
+            "peak_tip_speed_mm_s": float(self.tip_speed.max()) * 1000.0,
+            "timelaw_stepped_points": sum(law.stepped for law in self.laws),
             "timings_s": dict(self.timings_s),
             **self.speed.summary(),
+            **self.travel_metrics(),
         }
         return out
 
@@ -440,18 +524,34 @@ def provenance_json(config: Mapping[str, Any], inputs: Mapping[str, str | Path],
     }, sort_keys=True)
 
 
+def _time_piece(piece: JointPath, params: TrajectoryParams,
+                limits: JointLimits) -> TimeLaw:
+    """The rest-to-rest time law along one ink piece (or a whole straight-travel path)."""
+    s = piece.arc_length()
+    dq, d2q = path_derivatives(piece.q, s)
+    caps = _caps(piece.segment_kinds(), len(piece), params.feed_mark_m_s * params.speed,
+                 params.travel_feed_m_s * params.speed)
+    law = time_parameterise(s, dq, d2q, caps, limits)
+    law.check(limits)
+    return law
+
+
 def plan_trajectory(path: JointPath, chain: Chain, limits: JointLimits,
                     params: TrajectoryParams, *, ik: Mapping[str, Any] | None = None,
-                    check_speed: bool = True) -> Trajectory:
+                    check_speed: bool = True, planner: TravelPlanner | None = None,
+                    panel_origin_m: Any = (0.0, 0.0, 0.0)) -> Trajectory:
     """Time an IK path (see the module docstring).
 
     Args:
         path: the IK path (:meth:`JointPath.from_npz`).
         chain: the kinematic model (densify's IK, the tip of the final ``q``).
         limits: joint velocity and acceleration limits.
-        params: feeds, speed, densify step, corner radius.
+        params: feeds, speed, densify step, corner radius, travel mode.
         ik: keyword arguments for the densify IK (``needle_axis``, ``damping``, ...).
         check_speed: refuse a speed that cannot hold the marking feed.
+        planner: plans and checks the travel moves (required for planned travel).
+        panel_origin_m: the panel frame's origin in the arm frame (``uvz_mm`` of the
+            planned moves' samples), m.
 
     Returns:
         The trajectory.
@@ -459,33 +559,104 @@ def plan_trajectory(path: JointPath, chain: Chain, limits: JointLimits,
     Raises:
         SpeedRefused: ``params.speed`` cannot hold the marking feed within the limits.
         TattotronixError: bad parameters, a path the limits cannot time, IK failure on a
-            densified chord, or joint names that differ from the limits'.
+            densified chord, joint names that differ from the limits', or a travel move
+            no lift makes safe.
     """
     params.validate()
     if tuple(path.joints) != tuple(limits.joints):
         raise TattotronixError(f"the path's joints {list(path.joints)} are not the robot's "
                                f"{list(limits.joints)}: re-run the 'ik' stage")
+    planned = params.travel == "planned"
+    if planned and planner is None:
+        raise TattotronixError("planned travel needs a TravelPlanner (trajectory.travel="
+                               "planned); pass one, or set trajectory.travel=straight")
     t0 = time.perf_counter()
-    dense = densify(path, chain, params.max_step_m, ik)
+    hops = path.hops(params.clearance_mm) if planned else np.zeros(len(path) - 1, bool)
+    dense = densify(path, chain, params.max_step_m, ik, keep=hops)
     t1 = time.perf_counter()
-    s = dense.arc_length()
-    dq, d2q = path_derivatives(dense.q, s)
+    s_all = dense.arc_length()
+    dq, d2q = path_derivatives(dense.q, s_all)
     t2 = time.perf_counter()
     check = speed_limit(dense, dq, d2q, limits, feed_m_s=params.feed_mark_m_s,
                         speed=params.speed, corner_radius_m=params.corner_radius_m)
     if check_speed:
         check.raise_if_too_fast()
-    seg = dense.segment_kinds()
-    caps = _caps(seg, len(dense), params.feed_mark_m_s * params.speed,
-                 params.travel_feed_m_s * params.speed)
-    law = time_parameterise(s, dq, d2q, caps, limits)
-    law.check(limits)
-    tcp, _ = chain.fk(dense.q)
+    cut = np.flatnonzero(dense.hops(params.clearance_mm)) if planned else np.zeros(0, int)
+    bounds = np.concatenate(([0], cut + 1, [len(dense)]))
+    pieces = [dense.slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:],
+                                                           strict=True)]
+    laws = tuple(_time_piece(p, params, limits) for p in pieces)
     t3 = time.perf_counter()
+
+    # planned moves: home -> first piece, between pieces, last piece -> home
+    gaps: list[list[Any]] = [[] for _ in range(len(pieces) + 1)]
+    if planned:
+        assert planner is not None
+        home = np.asarray(params.home, dtype=np.float64)
+        if home.shape != (len(limits.joints),):
+            raise TattotronixError(f"trajectory.home needs {len(limits.joints)} angles, got "
+                                   f"{list(params.home)}")
+        if params.from_home:
+            gaps[0] = planner.plan(home, pieces[0].q[0], "from_home", "the move from home")
+            gaps[-1] = planner.plan(pieces[-1].q[-1], home, "to_home", "the way home")
+        for k in range(1, len(pieces)):
+            a, b = pieces[k - 1], pieces[k]
+            where = (f"the travel from panel ({a.uvz_mm[-1, 0]:.1f}, {a.uvz_mm[-1, 1]:.1f}) "
+                     f"to ({b.uvz_mm[0, 0]:.1f}, {b.uvz_mm[0, 1]:.1f}) mm")
+            gaps[k] = planner.plan(a.q[-1], b.q[0], "hop", where)
+    t4 = time.perf_counter()
+
+    origin = np.asarray(panel_origin_m, dtype=np.float64)
+    parts: dict[str, list[Any]] = {k: [] for k in ("t", "q", "qd", "qdd", "kind", "uvz",
+                                                   "source", "tcp", "speed", "ends")}
+    moves: list[MoveSummary] = []
+    clock = 0.0
+
+    def put(t: Array, q: Array, qd: Array, qdd: Array, kind: Any, uvz: Array, src: Any,
+            tcp: Array, speed: Array, ends: Array, first: bool) -> None:
+        # every part starts where the last one stopped, at rest: drop the repeated point
+        lo = 0 if first else 1
+        parts["t"].append(clock + t[lo:])
+        parts["q"].append(q[lo:])
+        parts["qd"].append(qd[lo:])
+        parts["qdd"].append(qdd[lo:])
+        parts["kind"].append(np.broadcast_to(np.asarray(kind, np.int8), (len(t),))[lo:])
+        parts["uvz"].append(uvz[lo:])
+        parts["source"].append(np.broadcast_to(np.asarray(src, np.int64), (len(t),))[lo:])
+        parts["tcp"].append(tcp[lo:])
+        parts["speed"].append(speed[lo:])
+        parts["ends"].append(ends)
+
+    for k in range(len(pieces) + 1):
+        for m in gaps[k]:
+            moves.append(MoveSummary(m.kind, clock, m.duration_s, m.lower_bound_s,
+                                     m.straight_m))
+            jac = chain.jacobian(m.q)[:, :3, :]
+            tip_v = np.linalg.norm(np.einsum("kij,kj->ki", jac, m.qd), axis=1)
+            put(m.t, m.q, m.qd, m.qdd, TRAVEL, (m.tcp - origin) * 1000.0, -1, m.tcp, tip_v,
+                m.qdd_ends, not parts["t"])
+            clock += m.duration_s
+        if k < len(pieces):
+            p, law = pieces[k], laws[k]
+            tcp_p, _ = chain.fk(p.q)
+            put(law.t, p.q, law.qd, law.qdd, p.kind, p.uvz_mm, p.source, tcp_p, law.sdot,
+                law.qdd_ends, not parts["t"])
+            clock += law.duration_s
+    t_all = np.concatenate(parts["t"])
+    q_all = np.concatenate(parts["q"])
+    kind = np.concatenate(parts["kind"]).astype(np.int8)
+    tcp = np.concatenate(parts["tcp"])
+    marked = np.zeros(len(kind), bool)
+    marked[1:] = (kind[:-1] == MARK) & (kind[1:] == MARK)
+    t5 = time.perf_counter()
     return Trajectory(
-        joints=dense.joints, t=law.t, q=dense.q, qd=law.qd, qdd=law.qdd, kind=dense.kind,
-        marked=dense.marked(), tcp=tcp, uvz_mm=dense.uvz_mm, source=dense.source, law=law,
-        limits=limits, params=params, speed=check, entries=dense.entries(),
-        marked_m=dense.marked_length_m(),
-        timings_s={"densify": t1 - t0, "derivatives": t2 - t1, "time_law": law.solve_s,
-                   "total": t3 - t0})
+        joints=dense.joints, t=t_all, q=q_all, qd=np.concatenate(parts["qd"]),
+        qdd=np.concatenate(parts["qdd"]), kind=kind, marked=marked, tcp=tcp,
+        uvz_mm=np.concatenate(parts["uvz"]), source=np.concatenate(parts["source"]),
+        s=np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(tcp, axis=0), axis=1)))),
+        tip_speed=np.concatenate(parts["speed"]), qdd_ends=np.concatenate(parts["ends"]),
+        laws=laws, moves=tuple(moves), limits=limits, params=params, speed=check,
+        entries=dense.entries(), marked_m=dense.marked_length_m(),
+        timings_s={"densify": t1 - t0, "derivatives": t2 - t1,
+                   "time_law": sum(law.solve_s for law in laws), "travel": t4 - t3,
+                   "total": t5 - t0})

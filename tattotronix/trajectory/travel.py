@@ -1,0 +1,302 @@
+"""Planned travel: time-optimal joint-space moves between strokes, from home and home again.
+
+A drawing's path alternates *ink pieces* (from the clearance point above a stroke's start,
+down through the approach, the strokes and drags, and up to clearance again) and *hops*
+(clearance to clearance, needle up). With ``trajectory.travel=planned`` each hop, the move
+from the home pose to the first clearance point and the way home from the last are planned
+here instead of being timed as straight tip lines:
+
+* **The move** (:func:`joint_move`) is the straight joint-space line, timed by one
+  trapezoidal profile shared by every joint (phase-synchronised): the joint with the most
+  to travel relative to its limits sets it. Every joint must cover its own ``|dq_j|``
+  under ``v_j`` and ``a_j``, which takes at least ``T_j`` (its own trapezoid), so no move
+  between two rests can beat ``max_j T_j``; with the same limits on every joint, as here,
+  the synchronised line reaches that bound exactly (:attr:`JointMove.lower_bound_s`).
+* **The checks** (:class:`TravelPlanner`): every sample and the motion between samples is
+  collision-free with ``collision.margin_mm`` (:func:`~tattotronix.collision.check.
+  check_trajectory`); a hop never brings the needle below the clearance height; the move
+  from home never raises, and the way home never lowers, the lowest point of the pen.
+* **When a move fails** it is retried higher: the needle is first lifted straight up its
+  axis by ``trajectory.lifts_mm`` (10, 20, 40, 80 mm), and the move runs between the
+  lifted poses. If no lift helps the plan is refused, naming the move: that drawing would
+  need a sampling planner, which no drawing on the panel has needed.
+* :func:`way_home` is the same way home from any pose over the panel, even with the needle
+  in the work: straight up the needle to clearance, then the planned move home.
+
+Units: m, rad, s.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tattotronix.kinematics import Chain, solve_path
+from tattotronix.stage import TattotronixError
+from tattotronix.trajectory.timelaw import JointLimits
+
+__all__ = ["JointMove", "MoveSamples", "TravelPlanner", "joint_move", "way_home"]
+
+Array = NDArray[np.float64]
+Z_TOL_M = 1e-5  # a hop may dip 10 um under the clearance height (IK lands within 1 um)
+_LOWEST_TOL_M = 1e-9  # "never lowers the pen": monotone to rounding
+_MIN_SAMPLES = 8
+_SAME_POSE_RAD = 1e-12  # poses closer than this (every joint) are the same pose
+
+
+def _trapezoid_time(dist: Array, v: Array, a: Array) -> Array:
+    """Least rest-to-rest time to cover ``dist`` under ``v`` and ``a`` (per element)."""
+    dist = np.abs(dist)
+    tri = dist < v * v / a
+    return np.where(tri, 2.0 * np.sqrt(dist / a), dist / v + v / a)
+
+
+@dataclass(frozen=True)
+class JointMove:
+    """A rest-to-rest straight joint-space move with a trapezoidal profile.
+
+    The normalised progress ``u(t)`` in [0, 1] accelerates at ``acc`` to ``vel`` (or
+    less: a triangle), cruises and decelerates; ``q(t) = q0 + u(t) (q1 - q0)``.
+
+    Attributes:
+        q0, q1: start and end poses, rad.
+        vel: peak progress rate, 1/s.
+        acc: progress acceleration, 1/s^2.
+        duration_s: the move's time, s.
+        lower_bound_s: ``max_j T_j``, the least time any rest-to-rest move can take.
+    """
+
+    q0: Array
+    q1: Array
+    vel: float
+    acc: float
+    duration_s: float
+    lower_bound_s: float
+
+    def at(self, t: Array) -> tuple[Array, Array, Array]:
+        """(q, qd, qdd) at times ``t`` (clipped to the move), each (N, n)."""
+        tt = np.clip(np.asarray(t, dtype=np.float64), 0.0, self.duration_s)
+        v, a, big_t = self.vel, self.acc, self.duration_s
+        t_acc = v / a
+        u = np.where(tt < t_acc, 0.5 * a * tt**2,
+                     np.where(tt <= big_t - t_acc, 0.5 * a * t_acc**2 + v * (tt - t_acc),
+                              1.0 - 0.5 * a * (big_t - tt) ** 2))
+        ud = np.where(tt < t_acc, a * tt, np.where(tt <= big_t - t_acc, v, a * (big_t - tt)))
+        udd = np.where(tt < t_acc, a, np.where(tt <= big_t - t_acc, 0.0, -a))
+        d = self.q1 - self.q0
+        return (self.q0 + u[:, None] * d, ud[:, None] * d, udd[:, None] * d)
+
+
+def joint_move(q0: Any, q1: Any, limits: JointLimits) -> JointMove:
+    """The fastest straight joint-space move between two rests (module docstring).
+
+    Raises:
+        TattotronixError: poses of the wrong size or not finite.
+    """
+    n = len(limits.joints)
+    try:
+        a0, a1 = np.asarray(q0, dtype=np.float64), np.asarray(q1, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise TattotronixError(f"a move needs two poses of {n} finite angles") from None
+    if a0.shape != (n,) or a1.shape != (n,) or not np.all(np.isfinite(a0 - a1)):
+        raise TattotronixError(f"a move needs two poses of {n} finite angles")
+    d = np.abs(a1 - a0)
+    if not d.max() > _SAME_POSE_RAD:  # no move (and no overflow in v / d below)
+        return JointMove(a0, a1, 1.0, 1.0, 0.0, 0.0)
+    moving = d > 0
+    vel = float(np.min(limits.velocity[moving] / d[moving]))
+    acc = float(np.min(limits.acceleration[moving] / d[moving]))
+    if vel * vel / acc > 1.0:  # never reaches the cruise: a triangle
+        vel = math.sqrt(acc)
+        duration = 2.0 / vel
+    else:
+        duration = 1.0 / vel + vel / acc
+    lower = float(_trapezoid_time(d, limits.velocity, limits.acceleration).max())
+    return JointMove(a0, a1, vel, acc, duration, lower)
+
+
+@dataclass(frozen=True)
+class MoveSamples:
+    """A planned move, sampled: what the trajectory splices in.
+
+    Attributes:
+        t: (m,) time from the move's start, s.
+        q, qd, qdd: (m, n) joint angles, rates, accelerations.
+        tcp: (m, 3) tip, m.
+        qdd_ends: (m-1, 2, n) acceleration at both ends of each interval.
+        kind: what the move is: ``hop``, ``from_home``, ``to_home`` or ``lift``.
+        duration_s: its time, s.
+        lower_bound_s: the least time any move between its poses takes, s.
+        straight_m: straight-line tip distance between its ends, m.
+    """
+
+    t: Array
+    q: Array
+    qd: Array
+    qdd: Array
+    tcp: Array
+    qdd_ends: Array
+    kind: str
+    duration_s: float
+    lower_bound_s: float
+    straight_m: float
+
+
+class TravelPlanner:
+    """Plans and checks the travel moves of one drawing (module docstring).
+
+    Args:
+        chain: the kinematic model (FK, and IK for lifts).
+        limits: joint velocity and acceleration limits.
+        collision: the collision model (``None``: no collision check; tests only).
+        margin_m: least clearance, m.
+        resolution_m: the swept check's resolution, m.
+        clearance_z_m: the clearance height in the arm frame (panel surface plus
+            ``toolpath.clearance_mm``), m.
+        lifts_m: how high to lift a failing move, m, in order.
+        max_step_m: the longest tip step between samples, m.
+        ik: keyword arguments for the lifts' IK.
+    """
+
+    def __init__(self, chain: Chain, limits: JointLimits, collision: Any, *, margin_m: float,
+                 resolution_m: float, clearance_z_m: float, lifts_m: list[float],
+                 max_step_m: float, ik: Mapping[str, Any] | None = None):
+        self.chain, self.limits, self.collision = chain, limits, collision
+        self.margin_m, self.resolution_m = margin_m, resolution_m
+        self.clearance_z_m = clearance_z_m
+        self.lifts_m = [float(h) for h in lifts_m]
+        self.max_step_m = max_step_m
+        self.ik = dict(ik or {})
+
+    # ------------------------------------------------------------------ sampling
+    def sample(self, move: JointMove, kind: str) -> MoveSamples:
+        """Uniform time samples, tight enough that the tip steps at most ``max_step_m``;
+        the last sample is exactly ``q1``. A move of no time is its one pose."""
+        n = _MIN_SAMPLES if move.duration_s > 0 else 1
+        while True:
+            t = np.linspace(0.0, move.duration_s, n)
+            q, qd, qdd = move.at(t)
+            q[-1] = move.q1
+            tcp, _ = self.chain.fk(q)
+            step = float(np.linalg.norm(np.diff(tcp, axis=0), axis=1).max()) if n > 1 else 0.0
+            if step <= self.max_step_m or n > 100_000:
+                break
+            n = int(math.ceil(n * step / self.max_step_m * 1.05)) + 1
+        ends = np.stack([qdd[:-1], qdd[1:]], axis=1)
+        # at the profile's switching times an interval's ends differ; both are in limits
+        return MoveSamples(t, q, qd, qdd, tcp, ends, kind, move.duration_s,
+                           move.lower_bound_s, float(np.linalg.norm(tcp[-1] - tcp[0])))
+
+    # ------------------------------------------------------------------ checks
+    def problems(self, s: MoveSamples) -> str:
+        """Why a sampled move is not acceptable ("" when it is)."""
+        if s.kind in ("hop", "lift"):
+            low = float(s.tcp[:, 2].min())
+            if low < self.clearance_z_m - Z_TOL_M:
+                return (f"the needle dips {1000 * (self.clearance_z_m - low):.3f} mm below the "
+                        "clearance height")
+        if s.kind in ("from_home", "to_home") and self.collision is not None:
+            low = self.collision.pen_lowest_z(s.q)
+            step = np.diff(low) if s.kind == "to_home" else -np.diff(low)
+            if step.min() < -_LOWEST_TOL_M:
+                what = "lowers" if s.kind == "to_home" else "raises then lowers"
+                return f"the move {what} the pen by {-1000 * step.min():.3f} mm"
+            if low.min() < self.clearance_z_m - Z_TOL_M:
+                return "the pen goes below the clearance height"
+        if self.collision is not None:
+            from tattotronix.collision.check import check_trajectory
+
+            rep = check_trajectory(self.collision, s.t, s.q, margin_m=self.margin_m,
+                                   plunge_m=math.inf, resolution_m=self.resolution_m)
+            if rep.events:
+                return rep.message()
+        return ""
+
+    # ------------------------------------------------------------------ planning
+    def _lifted(self, q: Array, height: float) -> Array:
+        """The pose with the needle ``height`` m straight up from the pose ``q``'s tip."""
+        tcp, _ = self.chain.fk(q[None, :])
+        target = tcp + np.array([0.0, 0.0, height])
+        res = solve_path(self.chain, target, seed=q, **self.ik)
+        if not res.ok:
+            raise TattotronixError(f"cannot lift the needle {height * 1000:g} mm above "
+                                   f"({tcp[0, 0] * 1000:.1f}, {tcp[0, 1] * 1000:.1f}) mm: "
+                                   "out of reach")
+        return np.asarray(res.q[0], dtype=np.float64)
+
+    def straight_up(self, q: Array, rise: float) -> MoveSamples:
+        """Rest to rest, the tip ``rise`` m straight up from pose ``q`` (a vertical line,
+        IK every ``max_step_m`` or closer), as fast as the joint limits allow."""
+        from tattotronix.trajectory.path import path_derivatives
+        from tattotronix.trajectory.timelaw import time_parameterise
+
+        n = max(int(math.ceil(rise / self.max_step_m)) + 1, 3)
+        tcp0, _ = self.chain.fk(q[None, :])
+        targets = tcp0 + np.linspace(0.0, rise, n)[:, None] * np.array([0.0, 0.0, 1.0])
+        res = solve_path(self.chain, targets, seed=q, **self.ik)
+        if not res.ok:
+            raise TattotronixError(f"cannot lift the needle {rise * 1000:.1f} mm straight up "
+                                   f"from ({tcp0[0, 0] * 1000:.1f}, {tcp0[0, 1] * 1000:.1f}) mm")
+        qs = np.asarray(res.q, dtype=np.float64)
+        qs[0] = q
+        tip, _ = self.chain.fk(qs)
+        s = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(tip, axis=0), axis=1))))
+        dq, d2q = path_derivatives(qs, s)
+        law = time_parameterise(s, dq, d2q, np.full(n, np.inf), self.limits)
+        return MoveSamples(law.t, qs, law.qd, law.qdd, tip, law.qdd_ends, "lift",
+                           law.duration_s, law.duration_s, float(rise))
+
+    def plan(self, q_a: Any, q_b: Any, kind: str, where: str) -> list[MoveSamples]:
+        """The moves from ``q_a`` to ``q_b`` (one, or three with a lift), checked.
+
+        Args:
+            q_a, q_b: the poses (rest at both).
+            kind: ``hop`` (clearance to clearance), ``from_home`` or ``to_home``.
+            where: names the move in a refusal.
+
+        Raises:
+            TattotronixError: no lift makes the move acceptable.
+        """
+        qa, qb = np.asarray(q_a, dtype=np.float64), np.asarray(q_b, dtype=np.float64)
+        first = self.sample(joint_move(qa, qb, self.limits), kind)
+        why = self.problems(first)
+        if not why:
+            return [first]
+        for h in self.lifts_m:
+            try:
+                up_a = self._lifted(qa, h) if kind != "from_home" else qa
+                up_b = self._lifted(qb, h) if kind != "to_home" else qb
+            except TattotronixError:
+                continue
+            moves = []
+            if kind != "from_home":
+                moves.append(self.sample(joint_move(qa, up_a, self.limits), "lift"))
+            moves.append(self.sample(joint_move(up_a, up_b, self.limits), kind))
+            if kind != "to_home":
+                moves.append(self.sample(joint_move(up_b, qb, self.limits), "lift"))
+            if not any(self.problems(m) for m in moves):
+                return moves
+        raise TattotronixError(
+            f"no safe travel for {where}: {why}; lifts of "
+            f"{', '.join(f'{h * 1000:g}' for h in self.lifts_m)} mm did not help (this move "
+            "needs a sampling planner; move the drawing or the home pose)")
+
+
+def way_home(planner: TravelPlanner, q: Any, home: Any) -> list[MoveSamples]:
+    """The way home from any pose over the panel: when the tip is below the clearance
+    height, straight up (a vertical tip line, IK every ``max_step_m``, timed by the time
+    law: the needle leaves the work along itself), then the planned move home."""
+    qa = np.asarray(q, dtype=np.float64)
+    tcp, _ = planner.chain.fk(qa[None, :])
+    moves: list[MoveSamples] = []
+    rise = planner.clearance_z_m - float(tcp[0, 2])
+    if rise > 0:
+        moves.append(planner.straight_up(qa, rise))
+        qa = moves[-1].q[-1]
+    moves.extend(planner.plan(qa, home, "to_home", "the way home"))
+    return moves
