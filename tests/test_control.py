@@ -339,9 +339,10 @@ def test_stored_drawing_is_played_as_is_and_retimed_for_another_speed(
     small_drawing.save_npz(tmp_path / "trajectories" / "small.npz",
                            provenance_json({str(k): v for k, v in config.items()}, {}, "test"))
     tr = small_drawing
-    np.savez(tmp_path / "ik" / "small.npz", joints=np.array(tr.joints), q=tr.q, tcp=tr.tcp,
-             kind=tr.kind, uvz_mm=tr.uvz_mm, xyz_m=tr.tcp, stroke=np.zeros(len(tr.t)),
-             residual=np.zeros(len(tr.t)))
+    ik = tr.source >= 0  # the IK path's own points (not densified, not planned travel)
+    np.savez(tmp_path / "ik" / "small.npz", joints=np.array(tr.joints), q=tr.q[ik],
+             tcp=tr.tcp[ik], kind=tr.kind[ik], uvz_mm=tr.uvz_mm[ik], xyz_m=tr.tcp[ik],
+             stroke=np.zeros(int(ik.sum())), residual=np.zeros(int(ik.sum())))
     same = resolve_drawing(cfg, tmp_path, desc)
     assert same.origin == "stored" and np.array_equal(same.q, tr.q)
     fast = resolve_drawing(compose(["art=small", "speed=2"]), tmp_path, desc)

@@ -524,6 +524,22 @@ def provenance_json(config: Mapping[str, Any], inputs: Mapping[str, str | Path],
     }, sort_keys=True)
 
 
+def _timeable(piece: JointPath, chain: Chain) -> JointPath:
+    """A piece of two points gets its joint-space midpoint (rest to rest over one chord
+    needs a point in between); others are returned as they are."""
+    if len(piece) != 2:
+        return piece
+    q = np.vstack([piece.q[0], 0.5 * (piece.q[0] + piece.q[1]), piece.q[1]])
+    tcp, _ = chain.fk(q)
+    seg_kind = piece.segment_kinds()[0]
+    kind = np.array([piece.kind[0], seg_kind if seg_kind != APPROACH else APPROACH,
+                     piece.kind[1]], np.int8)
+    uvz = np.vstack([piece.uvz_mm[0], 0.5 * (piece.uvz_mm[0] + piece.uvz_mm[1]),
+                     piece.uvz_mm[1]])
+    return JointPath(piece.joints, q, tcp, kind, uvz,
+                     np.array([piece.source[0], -1, piece.source[1]], np.int64))
+
+
 def _time_piece(piece: JointPath, params: TrajectoryParams,
                 limits: JointLimits) -> TimeLaw:
     """The rest-to-rest time law along one ink piece (or a whole straight-travel path)."""
@@ -583,9 +599,11 @@ def plan_trajectory(path: JointPath, chain: Chain, limits: JointLimits,
         check.raise_if_too_fast()
     cut = np.flatnonzero(dense.hops(params.clearance_mm)) if planned else np.zeros(0, int)
     bounds = np.concatenate(([0], cut + 1, [len(dense)]))
-    pieces = [dense.slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:],
-                                                           strict=True)]
-    laws = tuple(_time_piece(p, params, limits) for p in pieces)
+    pieces = [_timeable(dense.slice(int(a), int(b)), chain)
+              for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
+    # a piece of one point is a waypoint between two hops: the moves rest there
+    piece_laws = [_time_piece(p, params, limits) if len(p) > 1 else None for p in pieces]
+    laws = tuple(law for law in piece_laws if law is not None)
     t3 = time.perf_counter()
 
     # planned moves: home -> first piece, between pieces, last piece -> home
@@ -613,34 +631,47 @@ def plan_trajectory(path: JointPath, chain: Chain, limits: JointLimits,
     clock = 0.0
 
     def put(t: Array, q: Array, qd: Array, qdd: Array, kind: Any, uvz: Array, src: Any,
-            tcp: Array, speed: Array, ends: Array, first: bool) -> None:
-        # every part starts where the last one stopped, at rest: drop the repeated point
-        lo = 0 if first else 1
-        parts["t"].append(clock + t[lo:])
-        parts["q"].append(q[lo:])
-        parts["qd"].append(qd[lo:])
-        parts["qdd"].append(qdd[lo:])
-        parts["kind"].append(np.broadcast_to(np.asarray(kind, np.int8), (len(t),))[lo:])
-        parts["uvz"].append(uvz[lo:])
-        parts["source"].append(np.broadcast_to(np.asarray(src, np.int64), (len(t),))[lo:])
-        parts["tcp"].append(tcp[lo:])
-        parts["speed"].append(speed[lo:])
+            tcp: Array, speed: Array, ends: Array, first: bool, last: bool = True) -> None:
+        # parts meet at rest at the same pose: the join is kept once, from the ink piece
+        # (its kind and IK index), so a move drops its end there and a piece never drops
+        lo, hi = (0 if first else 1), (len(t) if last else len(t) - 1)
+        parts["t"].append(clock + t[lo:hi])
+        parts["q"].append(q[lo:hi])
+        parts["qd"].append(qd[lo:hi])
+        parts["qdd"].append(qdd[lo:hi])
+        parts["kind"].append(np.broadcast_to(np.asarray(kind, np.int8), (len(t),))[lo:hi])
+        parts["uvz"].append(uvz[lo:hi])
+        parts["source"].append(np.broadcast_to(np.asarray(src, np.int64), (len(t),))[lo:hi])
+        parts["tcp"].append(tcp[lo:hi])
+        parts["speed"].append(speed[lo:hi])
         parts["ends"].append(ends)
 
     for k in range(len(pieces) + 1):
-        for m in gaps[k]:
+        piece_next = k < len(pieces) and piece_laws[k] is not None
+        for i, m in enumerate(gaps[k]):
+            if m.duration_s <= 0:  # already there (home is the first pose): no samples
+                continue
             moves.append(MoveSummary(m.kind, clock, m.duration_s, m.lower_bound_s,
                                      m.straight_m))
             jac = chain.jacobian(m.q)[:, :3, :]
             tip_v = np.linalg.norm(np.einsum("kij,kj->ki", jac, m.qd), axis=1)
+            ends_here = piece_next and i == len(gaps[k]) - 1 and len(m.t) > 1
+            first = not parts["t"]
             put(m.t, m.q, m.qd, m.qdd, TRAVEL, (m.tcp - origin) * 1000.0, -1, m.tcp, tip_v,
-                m.qdd_ends, not parts["t"])
+                m.qdd_ends, first, last=not ends_here)
             clock += m.duration_s
         if k < len(pieces):
-            p, law = pieces[k], laws[k]
+            p, law = pieces[k], piece_laws[k]
             tcp_p, _ = chain.fk(p.q)
+            if law is None:
+                if not parts["t"]:  # a path that starts with a hop: its first point
+                    n_j = p.q.shape[1]
+                    put(np.zeros(1), p.q, np.zeros((1, n_j)), np.zeros((1, n_j)), p.kind,
+                        p.uvz_mm, p.source, tcp_p, np.zeros(1), np.zeros((0, 2, n_j)), True)
+                continue
+            joined = bool(parts["t"]) and not gaps[k]  # straight travel: never
             put(law.t, p.q, law.qd, law.qdd, p.kind, p.uvz_mm, p.source, tcp_p, law.sdot,
-                law.qdd_ends, not parts["t"])
+                law.qdd_ends, not joined)
             clock += law.duration_s
     t_all = np.concatenate(parts["t"])
     q_all = np.concatenate(parts["q"])

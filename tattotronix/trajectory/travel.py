@@ -200,7 +200,7 @@ class TravelPlanner:
             if low < self.clearance_z_m - Z_TOL_M:
                 return (f"the needle dips {1000 * (self.clearance_z_m - low):.3f} mm below the "
                         "clearance height")
-        if s.kind in ("from_home", "to_home") and self.collision is not None:
+        if s.kind in ("from_home", "to_home") and self.collision is not None and len(s.t) > 1:
             low = self.collision.pen_lowest_z(s.q)
             step = np.diff(low) if s.kind == "to_home" else -np.diff(low)
             if step.min() < -_LOWEST_TOL_M:
