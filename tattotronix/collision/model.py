@@ -205,7 +205,6 @@ class CollisionModel:
 
         Row 0 is the world (unused). Zero where the joint does not move the body.
         """
-        pin = self._pin
         m, gm = self.model, self.geom_model
         bodies = sorted(set(self._owner), key=self._owner.index)
         self.bodies = bodies
@@ -222,7 +221,6 @@ class CollisionModel:
                                                     radius + link_len)
                 link_len += float(np.linalg.norm(m.jointPlacements[jb].translation))
                 jb = m.parents[jb]
-        del pin
         return reach
 
     # ----------------------------------------------------------------------- queries
@@ -300,5 +298,5 @@ class CollisionModel:
             pose=qa, clearance_m={n: float(v) for n, v in zip(self.pair_names, c, strict=True)},
             collisions=[n.split("|") for n, v in zip(self.pair_names, c, strict=True) if v <= 0],
             min_clearance_m=float(c[worst]), worst_pair=self.pair_names[worst].split("|"),
-            needle_depth_m=float(max(self.needle_depth_m(tcp)[0], -np.inf)),
+            needle_depth_m=float(self.needle_depth_m(tcp)[0]),
             within_limits=bool(np.all(qa >= d.lower - 1e-12) and np.all(qa <= d.upper + 1e-12)))
