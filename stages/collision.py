@@ -47,7 +47,7 @@ def main(cfg: DictConfig, out: Outputs) -> None:
     model = CollisionModel(desc)
     rep = check_trajectory(model, traj.t, traj.q, margin_m=margin,
                            plunge_m=float(cfg.toolpath.plunge_mm) / 1000,
-                           resolution_m=float(cfg.collision.resolution_mm) / 1000)
+                           resolution_m=float(cfg.collision.resolution_mm) / 1000, tcp=traj.tcp)
     if not rep.ok:
         raise CollisionRefused(rep)
     metrics = {"name": name, "geometry": model.geometry, **rep.metrics(),

@@ -137,7 +137,8 @@ class CollisionRefused(TattotronixError):
 
 
 def check_trajectory(model: CollisionModel, t: Array, q: Array, *, margin_m: float,
-                     plunge_m: float, resolution_m: float = 1e-4) -> TrajectoryClearance:
+                     plunge_m: float, resolution_m: float = 1e-4,
+                     tcp: Array | None = None) -> TrajectoryClearance:
     """Clearance of every sample and of the motion between samples (module docstring).
 
     Args:
@@ -147,6 +148,8 @@ def check_trajectory(model: CollisionModel, t: Array, q: Array, *, margin_m: flo
         margin_m: the clearance required, m.
         plunge_m: the deepest the tip may go below the panel surface, m.
         resolution_m: stop bisecting a segment whose motion bound is below this, m.
+        tcp: (N, 3) the tip at each pose when the caller has it (a stored trajectory's
+            ``tcp``), m; otherwise computed.
 
     Raises:
         TattotronixError: bad arguments.
@@ -212,8 +215,8 @@ def check_trajectory(model: CollisionModel, t: Array, q: Array, *, margin_m: flo
         if len(T0):
             floor = np.minimum(floor, (0.5 * (D0 + D1 - model.motion_bound_m(Q0, Q1))).min(0))
     t2 = time.perf_counter()
-    tcp, _, _ = model.frames(qa)
-    depth = model.needle_depth_m(tcp)
+    tip = model.frames(qa)[0] if tcp is None else np.asarray(tcp, dtype=np.float64)
+    depth = model.needle_depth_m(tip)
     depth_max = float(depth.max()) if np.isfinite(depth).any() else 0.0
     events = [{"pair": model.pair_names[p], "time_s": float(first_bad[p]),
                "pose": [float(v) for v in first_q[p]],

@@ -20,7 +20,13 @@ What :func:`plan_trajectory` does (``stages/trajectory.py`` calls it):
    rest-to-rest law under the caps, the joint velocity limits and the per-joint
    acceleration limit (at both ends of every interval and over the interval), so
    velocity is continuous (a step between samples is at most ``a dt``) and travel
-   goes as fast as the limits allow.
+   goes as fast as the limits allow. With ``travel="planned"`` the path is cut at the
+   hops between strokes (never densified) and the law times each ink piece, rest to
+   rest.
+5. **Planned travel** (``travel="planned"``, :mod:`~tattotronix.trajectory.travel`): the
+   move from home, each hop and the way home are time-optimal joint-space moves, checked
+   for collision and clearance by the :class:`~.travel.TravelPlanner`, and spliced
+   between the pieces (the join keeps the piece's point).
 
 Units: SI inside (m, rad, s); mm only in names that say so.
 """
