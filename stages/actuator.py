@@ -23,9 +23,10 @@ from omegaconf import DictConfig
 
 from tattotronix.art.artwork import artwork_name
 from tattotronix.hardware.arm import calibration_from_config
+from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain
 from tattotronix.robot.description import build_description
-from tattotronix.stage import Outputs, run_stage
+from tattotronix.stage import run_stage
 from tattotronix.studies import actuator as study
 from tattotronix.trajectory import load_trajectory
 

@@ -17,9 +17,11 @@ import numpy as np
 from omegaconf import DictConfig
 
 from tattotronix.art.artwork import artwork_name
+from tattotronix.errors import TattotronixError
+from tattotronix.io.outputs import Outputs
 from tattotronix.report.animation import drawing_clip, mp4_available, render_drawing
 from tattotronix.robot.description import build_description
-from tattotronix.stage import Outputs, TattotronixError, run_stage
+from tattotronix.stage import run_stage
 from tattotronix.trajectory import load_trajectory
 
 log = logging.getLogger("tattotronix.animation")

@@ -15,7 +15,8 @@ from PIL import Image
 
 from tattotronix.art.artwork import artwork_name, load_artwork
 from tattotronix.art.mask import otsu_ink
-from tattotronix.stage import Outputs, run_stage
+from tattotronix.io.outputs import Outputs
+from tattotronix.stage import run_stage
 
 log = logging.getLogger("tattotronix.stages.artwork")
 

@@ -19,8 +19,10 @@ from pathlib import Path
 
 from omegaconf import DictConfig
 
+from tattotronix.errors import TattotronixError
+from tattotronix.io.outputs import Outputs
 from tattotronix.report.certify import OUTPUT_NAME, certify
-from tattotronix.stage import Outputs, TattotronixError, run_stage
+from tattotronix.stage import run_stage
 
 log = logging.getLogger("tattotronix.certify")
 

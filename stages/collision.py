@@ -24,9 +24,11 @@ from tattotronix.art.artwork import artwork_name
 from tattotronix.collision.check import CollisionRefused, check_trajectory
 from tattotronix.collision.figure import clearance_figure
 from tattotronix.collision.model import CollisionModel, parse_pose
+from tattotronix.io.outputs import Outputs
+from tattotronix.io.provenance import file_sha256
 from tattotronix.robot.description import build_description
-from tattotronix.stage import Outputs, logs_to_stderr, run_stage
-from tattotronix.trajectory import file_sha256, load_trajectory
+from tattotronix.stage import logs_to_stderr, run_stage
+from tattotronix.trajectory import load_trajectory
 
 log = logging.getLogger("tattotronix.collision")
 

@@ -13,7 +13,8 @@ from __future__ import annotations
 
 from omegaconf import DictConfig
 
-from tattotronix.stage import Outputs, run_stage
+from tattotronix.io.outputs import Outputs
+from tattotronix.stage import run_stage
 from tattotronix.studies.sweeps import run_case
 
 

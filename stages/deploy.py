@@ -18,9 +18,10 @@ from omegaconf import DictConfig
 from tattotronix.art.artwork import artwork_name
 from tattotronix.collision.check import require_checked
 from tattotronix.hardware.arm import build_program
+from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain
 from tattotronix.robot.description import build_description
-from tattotronix.stage import Outputs, run_stage
+from tattotronix.stage import run_stage
 from tattotronix.trajectory import load_trajectory
 
 log = logging.getLogger("tattotronix.deploy")

@@ -18,7 +18,8 @@ from omegaconf import DictConfig
 
 from tattotronix.control.drawing import draw_simulated
 from tattotronix.hardware.arm import draw_on_arm
-from tattotronix.stage import Outputs, run_stage
+from tattotronix.io.outputs import Outputs
+from tattotronix.stage import run_stage
 
 
 def main(cfg: DictConfig, out: Outputs) -> None:

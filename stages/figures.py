@@ -13,8 +13,9 @@ from __future__ import annotations
 from omegaconf import DictConfig
 
 from tattotronix.art.artwork import artwork_name
+from tattotronix.io.outputs import Outputs
 from tattotronix.report.figures import draw_figures
-from tattotronix.stage import Outputs, run_stage
+from tattotronix.stage import run_stage
 
 
 def main(cfg: DictConfig, out: Outputs) -> None:

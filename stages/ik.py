@@ -14,10 +14,11 @@ import numpy as np
 from omegaconf import DictConfig
 
 from tattotronix.art.artwork import artwork_name
+from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain, PinocchioTip, conditioning, verify
 from tattotronix.pipeline import solve_ik
 from tattotronix.robot.description import build_description
-from tattotronix.stage import Outputs, run_stage
+from tattotronix.stage import run_stage
 
 log = logging.getLogger("tattotronix.ik")
 

@@ -22,9 +22,11 @@ import numpy as np
 from omegaconf import DictConfig
 
 from tattotronix.art.artwork import artwork_name
+from tattotronix.errors import TattotronixError
+from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain, PinocchioTip
 from tattotronix.robot.description import build_description
-from tattotronix.stage import Outputs, TattotronixError, run_stage
+from tattotronix.stage import run_stage
 from tattotronix.studies import kinematics as study
 
 log = logging.getLogger("tattotronix.kinematics")

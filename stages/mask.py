@@ -15,7 +15,9 @@ from PIL import Image
 
 from tattotronix.art.artwork import artwork_name
 from tattotronix.art.mask import make_mask
-from tattotronix.stage import Outputs, TattotronixError, run_stage
+from tattotronix.errors import TattotronixError
+from tattotronix.io.outputs import Outputs
+from tattotronix.stage import run_stage
 
 log = logging.getLogger("tattotronix.stages.mask")
 

@@ -14,6 +14,7 @@ import logging
 
 from omegaconf import DictConfig
 
+from tattotronix.io.outputs import Outputs
 from tattotronix.robot.mass import (
     INERTIALS_FILE,
     inertia_problems,
@@ -24,7 +25,7 @@ from tattotronix.robot.mass import (
     table_difference,
     table_from_config,
 )
-from tattotronix.stage import Outputs, run_stage
+from tattotronix.stage import run_stage
 
 log = logging.getLogger("tattotronix")
 

@@ -9,9 +9,10 @@ import logging
 
 from omegaconf import DictConfig
 
+from tattotronix.io.outputs import Outputs
 from tattotronix.robot.description import build_description
 from tattotronix.robot.report import generate
-from tattotronix.stage import Outputs, run_stage
+from tattotronix.stage import run_stage
 
 log = logging.getLogger("tattotronix.robot")
 

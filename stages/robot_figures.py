@@ -14,9 +14,11 @@ import logging
 import numpy as np
 from omegaconf import DictConfig
 
+from tattotronix.errors import TattotronixError
+from tattotronix.io.outputs import Outputs
 from tattotronix.report.figures import arm_poses, chain_figure, mass_figure, panel_pose
 from tattotronix.robot.description import build_description
-from tattotronix.stage import Outputs, TattotronixError, run_stage
+from tattotronix.stage import run_stage
 
 log = logging.getLogger("tattotronix.figures")
 

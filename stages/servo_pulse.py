@@ -12,9 +12,9 @@ from __future__ import annotations
 
 import sys
 
+from tattotronix.errors import TattotronixError
 from tattotronix.hardware.pca9685 import PCA9685, RecordingBus, open_bus
 from tattotronix.hardware.pulse import hold_pulses
-from tattotronix.stage import TattotronixError
 
 
 def main(argv: list[str]) -> int:

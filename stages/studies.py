@@ -14,7 +14,9 @@ import logging
 from omegaconf import DictConfig
 
 from tattotronix.art.artwork import artwork_name
-from tattotronix.stage import Outputs, TattotronixError, run_stage
+from tattotronix.errors import TattotronixError
+from tattotronix.io.outputs import Outputs
+from tattotronix.stage import run_stage
 from tattotronix.studies.figures import study_figures, study_summary
 
 log = logging.getLogger("tattotronix.studies")

@@ -17,10 +17,12 @@ from omegaconf import DictConfig
 
 from tattotronix.art.artwork import artwork_name
 from tattotronix.art.grid import InkMask
+from tattotronix.errors import TattotronixError
+from tattotronix.io.outputs import Outputs
 from tattotronix.path.figure import toolpath_figure
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.plan import plan_toolpath
-from tattotronix.stage import Outputs, TattotronixError, run_stage
+from tattotronix.stage import run_stage
 
 log = logging.getLogger("tattotronix.stages.toolpath")
 

@@ -15,10 +15,12 @@ import logging
 from omegaconf import DictConfig, OmegaConf
 
 from tattotronix.art.artwork import artwork_name
+from tattotronix.io.outputs import Outputs
+from tattotronix.io.provenance import code_version, provenance_json
 from tattotronix.pipeline import straight_travel_baseline, trajectory_from_path
 from tattotronix.robot.description import build_description
-from tattotronix.stage import Outputs, code_version, run_stage
-from tattotronix.trajectory import JointPath, provenance_json
+from tattotronix.stage import run_stage
+from tattotronix.trajectory import JointPath
 
 log = logging.getLogger("tattotronix.trajectory")
 

@@ -13,10 +13,10 @@ import pytest
 
 from tattotronix.config.params import compose
 from tattotronix.config.schema import ActuatorOption
+from tattotronix.errors import TattotronixError
 from tattotronix.kinematics import Chain, solve_path
 from tattotronix.kinematics.synthetic import logo_like_strokes, stroke_path
 from tattotronix.robot.description import RobotDescription
-from tattotronix.stage import TattotronixError
 from tattotronix.studies.actuator import (
     ActuatorStudy,
     Declared,

@@ -14,13 +14,13 @@ import numpy as np
 import pytest
 
 from tattotronix.config.params import compose
+from tattotronix.errors import TattotronixError
 from tattotronix.hardware import PCA9685, RecordingBus, default_calibration
 from tattotronix.hardware.arm import ArmState, ramp
 from tattotronix.hardware.program import compile_program, count_period_us
 from tattotronix.hardware.pulse import hold_pulses
 from tattotronix.kinematics import Chain
 from tattotronix.robot.description import RobotDescription
-from tattotronix.stage import TattotronixError
 
 from .conftest import ROOT
 

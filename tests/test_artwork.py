@@ -26,7 +26,7 @@ from tattotronix.art.artwork import (
 )
 from tattotronix.art.mask import NoInkError, label_regions, make_mask
 from tattotronix.config.schema import ArtworkConfig, MaskConfig, PanelConfig
-from tattotronix.stage import TattotronixError
+from tattotronix.errors import TattotronixError
 
 ROOT = Path(__file__).resolve().parents[1]
 MASK = MaskConfig()

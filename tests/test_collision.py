@@ -28,11 +28,11 @@ from tattotronix.collision.check import (
 from tattotronix.collision.model import CollisionModel, parse_pose
 from tattotronix.collision.pairs import body_pairs
 from tattotronix.config.params import compose
+from tattotronix.errors import TattotronixError
+from tattotronix.io.provenance import file_sha256
 from tattotronix.robot.description import RobotDescription, build_description
 from tattotronix.robot.report import collision_pairs_report, zero_pose_report
 from tattotronix.robot.stl import mesh_dir_files
-from tattotronix.stage import TattotronixError
-from tattotronix.trajectory import file_sha256
 
 from .conftest import PYTHON, ROOT, small_art, stage_env
 

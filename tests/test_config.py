@@ -10,14 +10,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from tattotronix.config.params import (
-    ConfigError,
-    compose,
-    main,
-    params_text,
-    stale_message,
-    write_params,
-)
+from tattotronix.config.params import compose, main, params_text, stale_message, write_params
+from tattotronix.errors import ConfigError
 
 from .conftest import PYTHON, ROOT
 

@@ -16,11 +16,11 @@ from tattotronix.control.ink import compare_ink, ink_grid, rasterise_ink
 from tattotronix.control.reference import Reference, reference_at_ticks, resolve_window
 from tattotronix.control.simulate import simulate, substeps_per_tick
 from tattotronix.control.tracking import busiest_window, entry_times, tracking_errors
+from tattotronix.errors import TattotronixError
 from tattotronix.kinematics import Chain
 from tattotronix.pipeline import plan_drawing
 from tattotronix.plants import BACKENDS, PlantSettings, make_plant
 from tattotronix.robot.description import RobotDescription
-from tattotronix.stage import TattotronixError
 from tattotronix.trajectory import Trajectory
 
 from .conftest import small_art
@@ -329,7 +329,7 @@ def test_stored_drawing_is_played_as_is_and_retimed_for_another_speed(
     from omegaconf import OmegaConf
 
     from tattotronix.control.drawing import resolve_drawing
-    from tattotronix.trajectory import provenance_json
+    from tattotronix.io.provenance import provenance_json
 
     cfg = compose(["art=small"])
     (tmp_path / "trajectories").mkdir()

@@ -14,6 +14,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from tattotronix.config.params import compose
+from tattotronix.errors import TattotronixError
 from tattotronix.kinematics import (
     Chain,
     IkFailure,
@@ -29,7 +30,6 @@ from tattotronix.kinematics import (
 from tattotronix.kinematics.synthetic import logo_like_strokes, raster_strokes, stroke_path
 from tattotronix.robot.description import RobotDescription, build_description
 from tattotronix.robot.urdf import to_urdf
-from tattotronix.stage import TattotronixError
 
 DOWN = np.array([0.0, 0.0, -1.0])
 TCP_ZERO_MM = (258.96, -9.444, 245.5775)  # reference section 1.3

@@ -25,7 +25,7 @@ from tattotronix.art.mask import (
     make_mask,
 )
 from tattotronix.config.schema import MaskConfig, MaskMethod
-from tattotronix.stage import TattotronixError
+from tattotronix.errors import TattotronixError
 
 ROOT = Path(__file__).resolve().parents[1]
 MASK = MaskConfig()

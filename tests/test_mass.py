@@ -14,6 +14,8 @@ import numpy as np
 import pytest
 
 from tattotronix.config.params import PROJECT_ROOT, compose
+from tattotronix.errors import TattotronixError
+from tattotronix.io.outputs import Outputs
 from tattotronix.robot.mass import (
     INERTIALS_FILE,
     MassProperties,
@@ -33,7 +35,6 @@ from tattotronix.robot.mass import (
     table_yaml,
 )
 from tattotronix.robot.stl import mesh_dir_files, read_stl, write_stl
-from tattotronix.stage import Outputs, TattotronixError
 
 # ----------------------------------------------------------------------------- helpers
 
@@ -366,7 +367,7 @@ def test_stage_without_meshes_uses_committed_table(tmp_path):
     import json
 
     cfg = compose([f"paths.data={tmp_path}"])
-    out = Outputs(cfg)
+    out = Outputs(cfg.paths.data)
     with out.transaction():
         _stage_module().main(cfg, out)
     report = json.loads((tmp_path / "metrics" / "mass.json").read_text())
@@ -473,7 +474,7 @@ def test_stage_with_meshes(tmp_path, cad_dir):
     import json
 
     cfg = compose([f"paths.data={tmp_path}", f"robot.cad_dir={cad_dir.resolve()}"])
-    out = Outputs(cfg)
+    out = Outputs(cfg.paths.data)
     with out.transaction():
         _stage_module().main(cfg, out)
     report = json.loads((tmp_path / "metrics" / "mass.json").read_text())

@@ -18,6 +18,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from tattotronix.errors import TattotronixError
 from tattotronix.hardware.pca9685 import (
     LED0_ON_L,
     MODE1,
@@ -32,7 +33,6 @@ from tattotronix.hardware.pca9685 import (
     prescaler,
     round_half_away,
 )
-from tattotronix.stage import TattotronixError
 
 START = [
     (0x00, [0x10]),  # MODE1 SLEEP

@@ -10,11 +10,11 @@ import pytest
 
 from tattotronix.config.params import compose
 from tattotronix.control.dynamics import effective_inertia
+from tattotronix.errors import TattotronixError
 from tattotronix.robot.description import RobotDescription, build_description
 from tattotronix.robot.loaders import MujocoArm, PinocchioArm, PybulletArm
 from tattotronix.robot.report import zero_pose_report
 from tattotronix.robot.urdf import to_urdf
-from tattotronix.stage import TattotronixError
 
 from .conftest import write_models
 

@@ -18,6 +18,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from omegaconf import OmegaConf
 
+from tattotronix.errors import TattotronixError
 from tattotronix.hardware.pca9685 import PCA9685, RecordingBus
 from tattotronix.hardware.servos import (
     DEFAULT_CALIBRATION,
@@ -30,7 +31,6 @@ from tattotronix.hardware.servos import (
     default_calibration_mapping,
     load_calibration,
 )
-from tattotronix.stage import TattotronixError
 
 COUNT_US = 122 / 25e6 * 1e6  # one count at 50 Hz, 25 MHz (4.88 us)
 TOL_US = 1e-9

@@ -14,8 +14,8 @@ import pytest
 import yaml
 
 from tattotronix.config.params import compose
+from tattotronix.io.outputs import Outputs
 from tattotronix.path.polyline import resample
-from tattotronix.stage import Outputs
 from tattotronix.studies.sweeps import STUDIES, case_name, chord_error_mm, load_cases
 
 from .conftest import ROOT
@@ -58,10 +58,10 @@ def test_case_names_match_the_dvc_stage_outputs() -> None:
 
 def test_sweep_suffix_names_the_other_overrides_only_in_a_multirun() -> None:
     cfg = compose()
-    assert Outputs(cfg).sweep_suffix() == ""
-    out = Outputs(cfg, ["controller.wn=40", "plant.damping=0.01", "paths.data=a/b"])
+    assert Outputs(cfg.paths.data).sweep_suffix() == ""
+    out = Outputs(cfg.paths.data, ["controller.wn=40", "plant.damping=0.01", "paths.data=a/b"])
     assert out.sweep_suffix(("controller.wn",)) == "@plant.damping=0.01"  # not where
-    assert Outputs(cfg, ["controller.wn=40"]).sweep_suffix(("controller.wn",)) == ""
+    assert Outputs(cfg.paths.data, ["controller.wn=40"]).sweep_suffix(("controller.wn",)) == ""
 
 
 # --- chord error -----------------------------------------------------------------------

@@ -15,13 +15,13 @@ from scipy import ndimage
 
 from tattotronix.art.grid import InkMask
 from tattotronix.config.schema import MaskConfig, PanelConfig, ToolpathConfig
+from tattotronix.errors import TattotronixError
 from tattotronix.path.order import original_order
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.plan import Toolpath, plan_toolpath
 from tattotronix.path.polyline import close, length_mm, resample, smooth_closed, stations
 from tattotronix.path.regions import boundary_coverage, find_regions
 from tattotronix.path.strokes import StrokeKind
-from tattotronix.stage import TattotronixError
 
 ROOT = Path(__file__).resolve().parents[1]
 RES = 0.25

@@ -32,11 +32,12 @@ from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from tattotronix.config.params import compose
+from tattotronix.errors import TattotronixError
+from tattotronix.io.provenance import file_sha256, provenance_json
 from tattotronix.kinematics import Chain, solve_path
 from tattotronix.kinematics.synthetic import logo_like_strokes, raster_strokes, stroke_path
 from tattotronix.robot.description import RobotDescription
 from tattotronix.robot.urdf import to_urdf
-from tattotronix.stage import TattotronixError
 from tattotronix.trajectory import (
     NPZ_KEYS,
     JointLimits,
@@ -45,11 +46,9 @@ from tattotronix.trajectory import (
     Trajectory,
     TrajectoryParams,
     densify,
-    file_sha256,
     load_trajectory,
     path_derivatives,
     plan_trajectory,
-    provenance_json,
     time_parameterise,
     turn_radii,
 )

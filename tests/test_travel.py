@@ -29,10 +29,10 @@ from hypothesis import strategies as st
 
 from tattotronix.collision.model import CollisionModel
 from tattotronix.config.params import compose
+from tattotronix.errors import TattotronixError
 from tattotronix.kinematics import Chain, solve_path
 from tattotronix.pipeline import ik_settings, plan_drawing, travel_planner
 from tattotronix.robot.description import RobotDescription, build_description
-from tattotronix.stage import TattotronixError
 from tattotronix.trajectory import (
     JointLimits,
     JointMove,

@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 from PIL import Image, ImageOps
 
 from tattotronix.art.mask import NoInkError
-from tattotronix.stage import TattotronixError
+from tattotronix.errors import TattotronixError
 
 __all__ = [
     "ASSETS_DIR",

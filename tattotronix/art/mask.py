@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from tattotronix.art.grid import InkMask
 from tattotronix.config.schema import MaskMethod
-from tattotronix.stage import TattotronixError
+from tattotronix.errors import TattotronixError
 
 __all__ = [
     "MaskMethodError",

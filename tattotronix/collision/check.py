@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.collision.model import CollisionModel
-from tattotronix.stage import TattotronixError
+from tattotronix.errors import TattotronixError
 
 __all__ = ["CollisionRefused", "TrajectoryClearance", "check_trajectory", "require_checked"]
 
@@ -238,7 +238,7 @@ def require_checked(metrics_file: str | Path, trajectory_file: str | Path) -> di
         TattotronixError: no verdict, a verdict on another trajectory (its SHA-256
             differs), or a trajectory that was not clean.
     """
-    from tattotronix.trajectory import file_sha256
+    from tattotronix.io.provenance import file_sha256
 
     mf = Path(metrics_file)
     if not mf.is_file():

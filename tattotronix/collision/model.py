@@ -31,9 +31,9 @@ from numpy.typing import NDArray
 
 from tattotronix.collision.pairs import BodyPair, body_pairs
 from tattotronix.collision.shapes import kdop_vertices, load_kdops, mesh_vertices
+from tattotronix.errors import TattotronixError
 from tattotronix.robot.description import PEN_LINK, RobotDescription
 from tattotronix.robot.urdf import to_urdf
-from tattotronix.stage import TattotronixError
 
 __all__ = ["NEEDLE", "CollisionModel", "PoseReport", "parse_pose"]
 

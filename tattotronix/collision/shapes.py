@@ -27,8 +27,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from tattotronix.errors import TattotronixError
 from tattotronix.robot.stl import mesh_dir_files, read_stl
-from tattotronix.stage import TattotronixError
 
 __all__ = ["KDOP_DIRECTIONS", "KDOP_FILE", "directions", "kdop_offsets", "kdop_vertices",
            "load_kdops", "mesh_vertices", "write_kdops"]

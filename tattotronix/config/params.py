@@ -24,8 +24,9 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
+from tattotronix.errors import ConfigError
+
 __all__ = [
-    "ConfigError",
     "PROJECT_ROOT",
     "StaleParamsError",
     "compose",
@@ -40,10 +41,6 @@ PROJECT_ROOT = Path(__file__).resolve().parents[2]
 CONF_DIR = PROJECT_ROOT / "conf"
 PARAMS_FILE = "params.yaml"
 RECOMPOSE_HINT = "tattotronix-params  (or: python -m tattotronix.config.params)"
-
-
-class ConfigError(ValueError):
-    """A configuration value or key is wrong; the message says which and what is allowed."""
 
 
 class StaleParamsError(ConfigError):

@@ -35,7 +35,7 @@ from tattotronix.config.schema import Structure
 from tattotronix.control.analysis import pole_placement_gains
 from tattotronix.control.dynamics import Dynamics
 from tattotronix.control.reference import Reference
-from tattotronix.stage import TattotronixError
+from tattotronix.errors import TattotronixError
 
 __all__ = ["Controller", "Gains", "Structure", "structure_of"]
 

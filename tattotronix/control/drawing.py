@@ -32,11 +32,13 @@ from tattotronix.control.ink import compare_ink, ink_grid, rasterise_ink
 from tattotronix.control.reference import reference_at_ticks, resolve_window
 from tattotronix.control.simulate import Run, simulate, substeps_per_tick
 from tattotronix.control.tracking import TrackingErrors, tracking_errors
+from tattotronix.errors import StageInputMissing, TattotronixError
+from tattotronix.io.outputs import Outputs
+from tattotronix.io.provenance import code_version, provenance_json
 from tattotronix.kinematics import Chain
 from tattotronix.plants import PlantSettings, make_plant
 from tattotronix.robot.description import RobotDescription, build_description
-from tattotronix.stage import Outputs, StageInputMissing, TattotronixError, code_version
-from tattotronix.trajectory import JointPath, load_trajectory, provenance_json
+from tattotronix.trajectory import JointPath, load_trajectory
 
 __all__ = ["ClosedLoop", "Drawing", "available_drawings", "draw_simulated", "resolve_drawing",
            "run_closed_loop"]

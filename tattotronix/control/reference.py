@@ -14,7 +14,7 @@ from numpy.typing import NDArray
 from scipy.interpolate import CubicHermiteSpline
 
 from tattotronix.control.tracking import busiest_window
-from tattotronix.stage import TattotronixError
+from tattotronix.errors import TattotronixError
 
 __all__ = ["Reference", "reference_at_ticks", "resolve_window"]
 

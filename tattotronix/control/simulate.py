@@ -21,8 +21,8 @@ from numpy.typing import NDArray
 
 from tattotronix.control.controller import Controller
 from tattotronix.control.reference import Reference
+from tattotronix.errors import TattotronixError
 from tattotronix.plants.base import Plant
-from tattotronix.stage import TattotronixError
 
 __all__ = ["Run", "simulate", "substeps_per_tick"]
 

@@ -28,11 +28,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tattotronix.errors import TattotronixError
 from tattotronix.hardware.pca9685 import PCA9685, BusError, RecordingBus, open_bus
 from tattotronix.hardware.program import ServoProgram
 from tattotronix.hardware.servos import Calibration, load_calibration
 from tattotronix.kinematics import Chain, solve_path
-from tattotronix.stage import TattotronixError
 
 __all__ = ["ArmSession", "ArmState", "Paused", "calibration_from_config", "check_drawing_clear",
            "ramp"]

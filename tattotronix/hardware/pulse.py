@@ -10,8 +10,8 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Iterable
 
+from tattotronix.errors import TattotronixError
 from tattotronix.hardware.pca9685 import CHANNELS, PCA9685
-from tattotronix.stage import TattotronixError
 
 __all__ = ["MAX_US", "MIN_US", "hold_pulses", "parse_width"]
 

@@ -29,8 +29,8 @@ from typing import Union
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from tattotronix.errors import TattotronixError
 from tattotronix.robot.description import RobotDescription, rpy_matrix
-from tattotronix.stage import TattotronixError
 
 __all__ = ["Chain", "ChainState", "Num", "SoaState", "Vec3", "mat_entries"]
 

@@ -86,9 +86,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.config.schema import IkConfig
+from tattotronix.errors import TattotronixError
 from tattotronix.kinematics.chain import Chain, Num, SoaState, Vec3
 from tattotronix.robot.description import RobotDescription
-from tattotronix.stage import TattotronixError
 
 __all__ = [
     "Conditioning",

@@ -6,8 +6,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.art.grid import InkMask
+from tattotronix.errors import TattotronixError
 from tattotronix.path.params import ToolpathParams
-from tattotronix.stage import TattotronixError
 
 __all__ = ["check_fits", "extent_mm", "to_arm"]
 

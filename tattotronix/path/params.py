@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
-from tattotronix.stage import TattotronixError
+from tattotronix.errors import TattotronixError
 
 __all__ = ["ToolpathParams"]
 

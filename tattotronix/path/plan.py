@@ -16,13 +16,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.art.grid import InkMask
+from tattotronix.errors import TattotronixError
 from tattotronix.path.order import Order, OrderResult, optimise_order, original_order
 from tattotronix.path.panel import check_fits, to_arm
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.path3d import Path3D, build_path
 from tattotronix.path.strokes import Drawing, build_drawing
 from tattotronix.path.timing import PathMetrics, measure, timestamps
-from tattotronix.stage import TattotronixError
 
 __all__ = ["Toolpath", "plan_toolpath"]
 

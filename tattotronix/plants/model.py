@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
+from tattotronix.errors import TattotronixError
 from tattotronix.plants.base import Array, Plant, PlantSettings
 from tattotronix.robot.loaders import load_pinocchio
-from tattotronix.stage import TattotronixError
 
 __all__ = ["ModelPlant"]
 

@@ -27,10 +27,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from tattotronix.errors import TattotronixError
 from tattotronix.path.kinds import APPROACH, MARK, TRAVEL
 from tattotronix.report.figures import arm_poses
 from tattotronix.robot.description import RobotDescription
-from tattotronix.stage import TattotronixError
 
 __all__ = [
     "DrawingClip",

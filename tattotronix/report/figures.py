@@ -27,9 +27,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from tattotronix.errors import TattotronixError
+from tattotronix.io.outputs import Outputs
 from tattotronix.path.kinds import MARK
 from tattotronix.robot.description import RobotDescription
-from tattotronix.stage import Outputs, TattotronixError
 from tattotronix.studies.kinematics import _proxy, _pyplot
 
 __all__ = [

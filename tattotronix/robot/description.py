@@ -14,8 +14,8 @@ import numpy as np
 from numpy.typing import NDArray
 from omegaconf import DictConfig, OmegaConf
 
+from tattotronix.errors import TattotronixError
 from tattotronix.robot.stl import mesh_dir_files, resolve_cad_dir
-from tattotronix.stage import TattotronixError
 
 __all__ = [
     "Frame",

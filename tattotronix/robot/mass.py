@@ -34,8 +34,8 @@ from typing import Any
 import numpy as np
 
 from tattotronix.config.params import PROJECT_ROOT
+from tattotronix.errors import TattotronixError
 from tattotronix.robot.stl import mesh_dir_files, read_stl, resolve_cad_dir
-from tattotronix.stage import TattotronixError
 
 __all__ = [
     "C0",
@@ -566,7 +566,8 @@ def mass_report(table: Mapping[str, MassProperties], robot_cfg: Any) -> dict[str
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: integrate the meshes; ``--write`` rewrites the committed table."""
-    from tattotronix.config.params import ConfigError, compose
+    from tattotronix.config.params import compose
+    from tattotronix.errors import ConfigError
 
     ap = argparse.ArgumentParser(
         prog="python -m tattotronix.robot.mass",

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from tattotronix.config.params import PROJECT_ROOT
-from tattotronix.stage import TattotronixError
+from tattotronix.errors import TattotronixError
 
 __all__ = ["HEADER_BYTES", "RECORD_DTYPE", "mesh_dir_files", "read_stl", "write_stl"]
 

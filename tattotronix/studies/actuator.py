@@ -47,9 +47,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.config.schema import ActuatorOption
+from tattotronix.errors import TattotronixError
 from tattotronix.hardware.pca9685 import COUNTS
 from tattotronix.kinematics import Chain
-from tattotronix.stage import TattotronixError
 from tattotronix.trajectory import MARK, StoredTrajectory
 
 __all__ = [

@@ -56,6 +56,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.config.schema import KinematicsStudyConfig
+from tattotronix.errors import TattotronixError
 from tattotronix.kinematics import (
     Chain,
     Conditioning,
@@ -75,7 +76,6 @@ from tattotronix.kinematics.ik import (
 )
 from tattotronix.path.kinds import TRAVEL
 from tattotronix.robot.description import RobotDescription
-from tattotronix.stage import TattotronixError
 
 __all__ = [
     "PLACEMENT_OFFSETS_MM",

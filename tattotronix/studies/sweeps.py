@@ -41,11 +41,12 @@ from numpy.typing import NDArray
 from tattotronix.art.artwork import artwork_name
 from tattotronix.control.drawing import ClosedLoop, Drawing, resolve_drawing, run_closed_loop
 from tattotronix.control.tracking import entry_times
+from tattotronix.errors import TattotronixError
+from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.strokes import build_drawing
 from tattotronix.robot.description import RobotDescription, build_description
-from tattotronix.stage import Outputs, TattotronixError
 
 __all__ = ["STUDIES", "StudySpec", "case_name", "chord_error_mm", "load_cases",
            "rate_verdict_check", "run_case"]

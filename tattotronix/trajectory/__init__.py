@@ -30,10 +30,8 @@ from tattotronix.trajectory.plan import (
     StoredTrajectory,
     Trajectory,
     TrajectoryParams,
-    file_sha256,
     load_trajectory,
     plan_trajectory,
-    provenance_json,
     speed_limit,
 )
 from tattotronix.trajectory.timelaw import JointLimits, TimeLaw, time_parameterise
@@ -64,11 +62,9 @@ __all__ = [
     "TravelPlanner",
     "densify",
     "joint_move",
-    "file_sha256",
     "load_trajectory",
     "path_derivatives",
     "plan_trajectory",
-    "provenance_json",
     "segment_kinds",
     "speed_limit",
     "time_parameterise",

@@ -28,9 +28,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tattotronix.errors import TattotronixError
 from tattotronix.kinematics import Chain, solve_path
 from tattotronix.path.kinds import APPROACH, MARK, TRAVEL
-from tattotronix.stage import TattotronixError
 
 __all__ = [
     "APPROACH",

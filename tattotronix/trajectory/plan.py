@@ -33,7 +33,6 @@ Units: SI inside (m, rad, s); mm only in names that say so.
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
 import time
@@ -45,8 +44,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tattotronix.errors import TattotronixError
 from tattotronix.kinematics import Chain
-from tattotronix.stage import TattotronixError
 from tattotronix.trajectory.path import (
     APPROACH,
     MARK,
@@ -68,10 +67,8 @@ __all__ = [
     "StoredTrajectory",
     "Trajectory",
     "TrajectoryParams",
-    "file_sha256",
     "load_trajectory",
     "plan_trajectory",
-    "provenance_json",
     "speed_limit",
 ]
 
@@ -453,7 +450,7 @@ class Trajectory:
 
         Args:
             file: target path (ending in ``.npz``).
-            provenance: a JSON string (:func:`provenance_json`).
+            provenance: a JSON string (:func:`tattotronix.io.provenance.provenance_json`).
         """
         json.loads(provenance)  # must be JSON
         np.savez_compressed(
@@ -502,32 +499,6 @@ def load_trajectory(file: str | Path) -> StoredTrajectory:
             joints=tuple(str(j) for j in z["joints"]), t=z["t"], q=z["q"], qd=z["qd"],
             qdd=z["qdd"], kind=z["kind"], marked=z["marked"], tcp=z["tcp"],
             provenance=json.loads(str(z["provenance"])))
-
-
-def file_sha256(file: str | Path) -> str:
-    """Hex SHA-256 of a file's bytes."""
-    h = hashlib.sha256()
-    with open(file, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
-
-def provenance_json(config: Mapping[str, Any], inputs: Mapping[str, str | Path],
-                    code_version: str) -> str:
-    """The provenance string: the resolved config, the code version, input file hashes.
-
-    Args:
-        config: the composed config as plain containers (``OmegaConf.to_container(cfg,
-            resolve=True, enum_to_str=True)``).
-        inputs: role -> file (``{"ik": ..., "urdf": ...}``).
-        code_version: ``tattotronix.stage.code_version()``.
-    """
-    return json.dumps({
-        "config": dict(config),
-        "code_version": code_version,
-        "inputs": {k: {"path": str(p), "sha256": file_sha256(p)} for k, p in inputs.items()},
-    }, sort_keys=True)
 
 
 def _timeable(piece: JointPath, chain: Chain) -> JointPath:

@@ -47,8 +47,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from tattotronix.errors import TattotronixError
 from tattotronix.robot.description import RobotDescription
-from tattotronix.stage import TattotronixError
 
 __all__ = ["JointLimits", "TimeLaw", "time_parameterise"]
 

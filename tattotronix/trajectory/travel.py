@@ -36,8 +36,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tattotronix.errors import TattotronixError
 from tattotronix.kinematics import Chain, solve_path
-from tattotronix.stage import TattotronixError
 from tattotronix.trajectory.timelaw import JointLimits
 
 __all__ = ["JointMove", "MoveSamples", "TravelPlanner", "joint_move", "way_home"]

@@ -1,0 +1,31 @@
+"""The project's exceptions. This module imports nothing else of the project, so any
+layer can raise them without pulling in another.
+
+Every one is an error the user can act on: the message says what, which value or file,
+and what to do. The stage runner (``tattotronix.stage``) prints it as one line and exits
+with code 2.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+__all__ = ["ConfigError", "StageInputMissing", "TattotronixError"]
+
+
+class TattotronixError(Exception):
+    """An error the user can act on. The message says what, which value, and what to do."""
+
+
+class ConfigError(TattotronixError, ValueError):
+    """A configuration value or key is wrong; the message says which and what is allowed."""
+
+
+class StageInputMissing(TattotronixError):
+    """A stage's input does not exist yet; the message names the stage to run first."""
+
+    def __init__(self, path: Path, stage: str):
+        super().__init__(
+            f"missing input {path}: run the '{stage}' stage first "
+            f"(python stages/{stage}.py, or dvc repro)"
+        )
