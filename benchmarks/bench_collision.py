@@ -17,18 +17,19 @@ from run import Row, median_time
 
 from tattotronix.collision.check import check_trajectory
 from tattotronix.collision.model import CollisionModel
-from tattotronix.config.params import compose
+from tattotronix.config.params import compose_settings
+from tattotronix.io.artifacts import TrajectoryRecord
 from tattotronix.robot.description import build_description
 
-TRAJ = Path(__file__).resolve().parents[1] / "data" / "trajectories" / "emblem.npz"
+TRAJ = TrajectoryRecord.path(Path(__file__).resolve().parents[1] / "data", name="emblem")
 N_POINTS = 16_000
 GOAL_S = 2.0
 
 
 def _poses() -> tuple[np.ndarray, np.ndarray, str]:
     if TRAJ.exists():
-        with np.load(TRAJ) as z:
-            return z["t"][:N_POINTS], z["q"][:N_POINTS], "emblem"
+        z = TrajectoryRecord.load(TRAJ)
+        return z.t[:N_POINTS], z.q[:N_POINTS], "emblem"
     t = np.linspace(0.0, 160.0, N_POINTS)
     a = np.array([0.23, 0.53, 0.40, 0.0, 0.64])
     b = np.array([-0.2, 0.9, 0.8, 0.0, 0.9])
@@ -44,9 +45,9 @@ def bench(repeat: int) -> list[Row]:
     if cad:
         setups.append(("mesh hulls", [f"robot.cad_dir={cad}"]))
     for geometry, overrides in setups:
-        cfg = compose(overrides)
+        cfg = compose_settings(overrides)
         model = CollisionModel(build_description(cfg.robot))
-        margin = float(cfg.collision.margin_mm) / 1000
+        margin = cfg.collision.margin_m
         el, rep = median_time(lambda m=model, c=cfg, g=margin: check_trajectory(
             m, t, q, margin_m=g, plunge_m=float(c.toolpath.plunge_mm) / 1000,
             resolution_m=float(c.collision.resolution_mm) / 1000), repeat)

@@ -19,12 +19,14 @@ from pathlib import Path
 import numpy as np
 from run import Row
 
-from tattotronix.config.params import compose
+from tattotronix.config.params import compose_settings
+from tattotronix.config.schema import PlantConfig
 from tattotronix.control.controller import Controller, Gains
 from tattotronix.control.dynamics import Dynamics
 from tattotronix.control.reference import reference_at_ticks
 from tattotronix.control.simulate import simulate
 from tattotronix.control.tracking import tracking_errors
+from tattotronix.io.artifacts import TrajectoryRecord
 from tattotronix.kinematics import Chain
 from tattotronix.plants import BACKENDS, PlantSettings, make_plant
 from tattotronix.robot.description import build_description
@@ -69,11 +71,11 @@ def _baselines(mjcf: Path, urdf: Path, q0: np.ndarray, steps: int, repeat: int,
 
 
 def bench(repeat: int) -> list[Row]:
-    cfg = compose()
+    cfg = compose_settings()
     desc = build_description(cfg.robot)
     urdf = DATA / "robot" / f"{desc.name}.urdf"
     mjcf = DATA / "robot" / f"{desc.name}.xml"
-    src = DATA / "trajectories" / "emblem.npz"
+    src = TrajectoryRecord.path(DATA, name="emblem")
     if not src.exists():
         return [("whole drawing", float("nan"), "x", f"{src} missing: run dvc repro first")]
     tr = load_trajectory(src)
@@ -81,7 +83,7 @@ def bench(repeat: int) -> list[Row]:
     ref = reference_at_ticks(tr.t, tr.q, tr.qd, 1e-3)
     gains = Gains.tuned_at(dyn, ref.middle_pose(), 160.0)
     chain = Chain.from_description(desc)
-    settings = PlantSettings(gravity=desc.gravity, tip_frame=desc.tip_frame)
+    settings = PlantSettings.from_config(PlantConfig(), desc.gravity, desc.tip_frame)
     reps = max(1, min(repeat, 3))  # each run is the whole ~10 min drawing
     rows: list[Row] = []
     rtf: dict[str, float] = {}

@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 from run import Row, median_time
 
-from tattotronix.config.params import compose
+from tattotronix.config.params import compose_settings
+from tattotronix.io.artifacts import TOOLPATH, ToolpathRecord
 from tattotronix.kinematics import (
     Chain,
     PinocchioTip,
@@ -24,7 +25,7 @@ from tattotronix.kinematics import (
 from tattotronix.kinematics.synthetic import logo_like_strokes, stroke_path
 from tattotronix.robot.description import build_description
 
-DATA = Path(__file__).resolve().parents[1] / "data" / "toolpath"
+DATA = Path(__file__).resolve().parents[1] / "data"
 
 
 def _rows(label: str, chain: Chain, ref: PinocchioTip, x: np.ndarray,
@@ -52,12 +53,11 @@ def _rows(label: str, chain: Chain, ref: PinocchioTip, x: np.ndarray,
 
 
 def bench(repeat: int) -> list[Row]:
-    desc = build_description(compose().robot)
+    desc = build_description(compose_settings().robot)
     chain = Chain.from_description(desc)
     ref = PinocchioTip.from_description(desc)
     rows = _rows("16k synthetic", chain, ref, stroke_path(logo_like_strokes()).xyz_m, repeat)
-    for npz in sorted(DATA.glob("*.npz"))[:1]:
-        with np.load(npz, allow_pickle=False) as f:
-            x = np.asarray(f["xyz_m"], dtype=float)
+    for npz in TOOLPATH.find(DATA)[:1]:
+        x = np.asarray(ToolpathRecord.load(npz).xyz_m, dtype=float)
         rows += _rows(npz.stem, chain, ref, x, repeat)
     return rows

@@ -11,18 +11,18 @@ from pathlib import Path
 import numpy as np
 from run import Row, median_time
 
-from tattotronix.config.params import compose
+from tattotronix.config.params import compose_settings
+from tattotronix.report.robot import generate
 from tattotronix.robot.description import build_description
 from tattotronix.robot.loaders import MujocoArm, PinocchioArm, PybulletArm
 from tattotronix.robot.mjcf import to_mjcf
-from tattotronix.robot.report import generate
 from tattotronix.robot.urdf import to_urdf
 
 CALLS = 2000
 
 
 def bench(repeat: int) -> list[Row]:
-    cfg = compose()
+    cfg = compose_settings()
     desc = build_description(cfg.robot)
     rows: list[Row] = []
     t, _ = median_time(lambda: generate(desc), repeat)

@@ -14,7 +14,8 @@ from pathlib import Path
 
 from run import Row, median_time
 
-from tattotronix.config.params import compose
+from tattotronix.config.params import compose_settings
+from tattotronix.io.artifacts import IkRecord
 from tattotronix.kinematics import Chain, solve_path
 from tattotronix.kinematics.synthetic import logo_like_strokes, stroke_path
 from tattotronix.pipeline import travel_planner
@@ -27,7 +28,7 @@ from tattotronix.trajectory import (
     plan_trajectory,
 )
 
-EMBLEM = Path(__file__).resolve().parents[1] / "data" / "ik" / "emblem.npz"
+EMBLEM = IkRecord.path(Path(__file__).resolve().parents[1] / "data", name="emblem")
 
 
 def _rows(label: str, path: JointPath, chain: Chain, limits: JointLimits,
@@ -55,7 +56,7 @@ def _rows(label: str, path: JointPath, chain: Chain, limits: JointLimits,
 
 
 def bench(repeat: int) -> list[Row]:
-    cfg = compose()
+    cfg = compose_settings()
     desc = build_description(cfg.robot)
     chain = Chain.from_description(desc)
     params = TrajectoryParams.from_config(cfg)

@@ -1,4 +1,5 @@
-"""Stage `actuator`: what hobby servos allow at the needle (reference section 6.6).
+"""Stage `actuator`: what hobby servos allow at the needle (docs/actuators.md; the
+original's study: docs/original.md, "6.6 The actuator study").
 
 Reads data/trajectories/<name>.npz (run the 'trajectory' stage first). Writes
 data/metrics/actuator/<name>.json (the declared steps and dead bands, each option's rest
@@ -18,11 +19,10 @@ from __future__ import annotations
 import logging
 from typing import Any
 
-import numpy as np
-from omegaconf import DictConfig
-
 from tattotronix.art.artwork import artwork_name
+from tattotronix.config.schema import Config
 from tattotronix.hardware.arm import calibration_from_config
+from tattotronix.io.artifacts import StudySeriesRecord, TrajectoryRecord, make_provenance
 from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain
 from tattotronix.robot.description import build_description
@@ -33,21 +33,22 @@ from tattotronix.trajectory import load_trajectory
 log = logging.getLogger("tattotronix.actuator")
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Run the actuator study on one artwork's trajectory; write metrics, series, figure."""
     name = artwork_name(cfg.artwork)
-    src = out.require(out.path("trajectories", f"{name}.npz"), "trajectory")
+    src = TrajectoryRecord.require(out.data, name=name)
     desc = build_description(cfg.robot)
     chain = Chain.from_description(desc)
     frame_hz = calibration_from_config(cfg.hardware, desc.joint_names).frame_hz
     res = study.study_from_config(cfg, chain, load_trajectory(src), frame_hz=frame_hz)
 
-    target = out.path("studies", "actuator", f"{name}.npz")
+    target = StudySeriesRecord.path(out.data, "actuator", name)
     series: dict[str, Any] = study.series_arrays(res)
-    np.savez_compressed(out.tmp_path(target), **series)
+    StudySeriesRecord(series).save(out.tmp_path(target),
+                                   make_provenance(cfg, {"trajectory": src}))
     study.figure(res, out.tmp_path(out.path("figures", name, "actuator.png")), name)
     metrics = {"name": name, **study.metrics(res),
-               "series_file": f"studies/actuator/{name}.npz"}
+               "series_file": target.relative_to(out.data).as_posix()}
     out.write_json(out.path("metrics", "actuator", f"{name}.json"), metrics)
 
     d = res.declared

@@ -11,13 +11,12 @@ data/figures/<name>/drawing.mp4.
 from __future__ import annotations
 
 import logging
-import zipfile
 
 import numpy as np
-from omegaconf import DictConfig
 
 from tattotronix.art.artwork import artwork_name
-from tattotronix.errors import TattotronixError
+from tattotronix.config.schema import Config
+from tattotronix.io.artifacts import RunLogRecord, TrajectoryRecord, run_label
 from tattotronix.io.outputs import Outputs
 from tattotronix.report.animation import drawing_clip, mp4_available, render_drawing
 from tattotronix.robot.description import build_description
@@ -29,22 +28,17 @@ log = logging.getLogger("tattotronix.animation")
 BACKEND = "mujoco"  # the simulate stage's plant
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Render the drawing of the configured artwork."""
     name = artwork_name(cfg.artwork)
     desc = build_description(cfg.robot)
-    traj = load_trajectory(out.require(out.path("trajectories", f"{name}.npz"), "trajectory"))
+    traj = load_trajectory(TrajectoryRecord.require(out.data, name=name))
     urdf = out.require(out.path("robot", f"{desc.name}.urdf"), "robot")
-    run_file = out.path("runs", f"{name}-{BACKEND}", "log.npz")
+    run_file = RunLogRecord.path(out.data, label=run_label(name, BACKEND))
     run: dict[str, np.ndarray] = {}
     if run_file.exists():
-        try:
-            with np.load(run_file, allow_pickle=False) as z:
-                run = {"run_t": z["t"], "run_q": z["q"], "run_tip_m": z["tip"]}
-        except (OSError, KeyError, ValueError, zipfile.BadZipFile) as exc:
-            raise TattotronixError(f"cannot read the run log {run_file} ({exc}): re-run the "
-                                   f"'simulate' stage (python stages/draw.py art={name} "
-                                   f"backend={BACKEND} window=null)") from None
+        rec = RunLogRecord.load_run(out.data, name, BACKEND)
+        run = {"run_t": rec.t, "run_q": rec.q, "run_tip_m": rec.tip}
     else:
         log.info("animate %s: no run log at %s: rendering the planned trajectory (run the "
                  "'simulate' stage to draw what the arm did)", name, run_file)

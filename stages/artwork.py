@@ -10,11 +10,11 @@ from __future__ import annotations
 
 import logging
 
-from omegaconf import DictConfig
 from PIL import Image
 
 from tattotronix.art.artwork import artwork_name, load_artwork
 from tattotronix.art.mask import otsu_ink
+from tattotronix.config.schema import Config
 from tattotronix.io.outputs import Outputs
 from tattotronix.stage import run_stage
 
@@ -23,7 +23,7 @@ log = logging.getLogger("tattotronix.stages.artwork")
 MM_PER_INCH = 25.4
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Load the artwork, write its raster and metrics."""
     name = artwork_name(cfg.artwork)
     art = load_artwork(

@@ -17,8 +17,7 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from omegaconf import DictConfig
-
+from tattotronix.config.schema import Config
 from tattotronix.errors import TattotronixError
 from tattotronix.io.outputs import Outputs
 from tattotronix.report.certify import OUTPUT_NAME, certify
@@ -27,7 +26,7 @@ from tattotronix.stage import run_stage
 log = logging.getLogger("tattotronix.certify")
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Certify the documents; write the counts, or fail with every problem found."""
     root = Path.cwd()
     report = certify(root, metrics_dir=root / out.path("metrics"))

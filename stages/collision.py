@@ -18,14 +18,14 @@ from __future__ import annotations
 import json
 import logging
 
-from omegaconf import DictConfig
-
 from tattotronix.art.artwork import artwork_name
 from tattotronix.collision.check import CollisionRefused, check_trajectory
-from tattotronix.collision.figure import clearance_figure
 from tattotronix.collision.model import CollisionModel, parse_pose
+from tattotronix.config.schema import Config
+from tattotronix.io.artifacts import TrajectoryRecord
 from tattotronix.io.outputs import Outputs
 from tattotronix.io.provenance import file_sha256
+from tattotronix.report.figures import clearance_figure
 from tattotronix.robot.description import build_description
 from tattotronix.stage import logs_to_stderr, run_stage
 from tattotronix.trajectory import load_trajectory
@@ -33,10 +33,10 @@ from tattotronix.trajectory import load_trajectory
 log = logging.getLogger("tattotronix.collision")
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Check one artwork's trajectory, or report one pose."""
     desc = build_description(cfg.robot)
-    margin = float(cfg.collision.margin_mm) / 1000
+    margin = cfg.collision.margin_m
     if cfg.pose is not None:
         logs_to_stderr()
         model = CollisionModel(desc)
@@ -44,12 +44,12 @@ def main(cfg: DictConfig, out: Outputs) -> None:
         print(json.dumps(report.to_json(margin, model.geometry), allow_nan=False), flush=True)
         return
     name = artwork_name(cfg.artwork)
-    src = out.require(out.path("trajectories", f"{name}.npz"), "trajectory")
+    src = TrajectoryRecord.require(out.data, name=name)
     traj = load_trajectory(src)
     model = CollisionModel(desc)
     rep = check_trajectory(model, traj.t, traj.q, margin_m=margin,
-                           plunge_m=float(cfg.toolpath.plunge_mm) / 1000,
-                           resolution_m=float(cfg.collision.resolution_mm) / 1000, tcp=traj.tcp)
+                           plunge_m=cfg.toolpath.plunge_m,
+                           resolution_m=cfg.collision.resolution_m, tcp=traj.tcp)
     if not rep.ok:
         raise CollisionRefused(rep)
     metrics = {"name": name, "geometry": model.geometry, **rep.metrics(),
@@ -57,6 +57,7 @@ def main(cfg: DictConfig, out: Outputs) -> None:
     fig = out.path("figures", name, "clearance.png")
     clearance_figure(rep, traj.t, traj.kind, out.tmp_path(fig))
     out.write_json(out.path("metrics", "collision", f"{name}.json"), metrics)
+    out.write_timings("collision", name, rep.timings_s)
     log.info("collision %s (%s): %d poses, %d segments bisected; least clearance %.2f mm "
              "(%s), margin %g mm; needle %.3f mm deep (plunge %g mm); %.2f s", name,
              model.geometry, rep.samples, rep.bisected, metrics["min_clearance_mm"],

@@ -4,20 +4,20 @@ Reads data/trajectories/<name>.npz, the collision stage's verdict on it
 (data/metrics/collision/<name>.json: refuses a trajectory that was not checked, or not
 clean) and the servo calibration (conf/hardware, or
 hardware.calibration_file); writes data/deploy/<name>.npz (t, q, counts, channels,
-frame_hz, count_us) and data/metrics/deploy/<name>.json: frames, the largest count step
+frame_hz, count_us, provenance) and data/metrics/deploy/<name>.json: frames, the largest count step
 per channel, the quantisation error per joint (deg) and the tip error it implies.
 """
 
 from __future__ import annotations
 
 import logging
-
-import numpy as np
-from omegaconf import DictConfig
+from pathlib import Path
 
 from tattotronix.art.artwork import artwork_name
-from tattotronix.collision.check import require_checked
+from tattotronix.config.schema import Config
 from tattotronix.hardware.arm import build_program
+from tattotronix.hardware.gate import require_checked
+from tattotronix.io.artifacts import ServoProgramRecord, TrajectoryRecord, make_provenance
 from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain
 from tattotronix.robot.description import build_description
@@ -27,18 +27,19 @@ from tattotronix.trajectory import load_trajectory
 log = logging.getLogger("tattotronix.deploy")
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Compile the program of one artwork and write it with its metrics."""
     name = artwork_name(cfg.artwork)
-    src = out.require(out.path("trajectories", f"{name}.npz"), "trajectory")
+    src = TrajectoryRecord.require(out.data, name=name)
     require_checked(out.path("metrics", "collision", f"{name}.json"), src)
     traj = load_trajectory(src)
     desc = build_description(cfg.robot)
     program, calib = build_program(cfg, desc, traj.t, traj.q, traj.qd)
-    np.savez_compressed(out.tmp_path(out.path("deploy", f"{name}.npz")), t=program.t,
-                        q=program.q, counts=program.counts,
-                        channels=np.array(program.channels), frame_hz=program.frame_hz,
-                        count_us=program.count_us)
+    inputs = {"trajectory": src}
+    if cfg.hardware.calibration_file:
+        inputs["calibration"] = Path(str(cfg.hardware.calibration_file))
+    program.record().save(out.tmp_path(ServoProgramRecord.path(out.data, name=name)),
+                          make_provenance(cfg, inputs))
     m = {"name": name, **program.metrics(calib, Chain.from_description(desc))}
     out.write_json(out.path("metrics", "deploy", f"{name}.json"), m)
     log.info("deploy %s: %d frames, %.2f us a count; quantisation up to %.3f deg, tip %.2f mm "

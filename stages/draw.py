@@ -7,22 +7,22 @@
     python stages/draw.py backend=arm art=NAME [dry_run=true [realtime=false]] [resume=true]
 
 Writes data/runs/<name>-<backend>/{log.npz, ink.png, ink_vs_plan.png} and
-data/metrics/runs/<name>-<backend>.json (tracking errors as reference section 5.5
-defines them, peak torque, real-time factor, ink IoU against the plan). On the arm:
-data/runs/<name>-arm/{i2c.jsonl (dry run), poses.jsonl} and the arm state file.
+data/metrics/runs/<name>-<backend>.json (tracking errors as the original defined them,
+docs/original.md, "5.5 Tracking error"; peak torque, real-time factor, ink IoU against
+the plan). On the arm: data/runs/<name>-arm/{i2c.jsonl (dry run), poses.jsonl} and the
+arm state file.
 """
 
 from __future__ import annotations
 
-from omegaconf import DictConfig
-
+from tattotronix.config.schema import Config
 from tattotronix.control.drawing import draw_simulated
 from tattotronix.hardware.arm import draw_on_arm
 from tattotronix.io.outputs import Outputs
 from tattotronix.stage import run_stage
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Draw on the configured backend."""
     if cfg.backend.name == "arm":
         draw_on_arm(cfg, out)

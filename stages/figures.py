@@ -10,15 +10,14 @@ tracking.png (the tip error along the whole run and its distribution).
 
 from __future__ import annotations
 
-from omegaconf import DictConfig
-
 from tattotronix.art.artwork import artwork_name
+from tattotronix.config.schema import Config
 from tattotronix.io.outputs import Outputs
 from tattotronix.report.figures import draw_figures
 from tattotronix.stage import run_stage
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Draw the figures of the configured artwork."""
     draw_figures(cfg, out, artwork_name(cfg.artwork))
 

@@ -1,7 +1,8 @@
 """Stage `ik`: joint angles for every toolpath point (batched DLS on the 5x5 task Jacobian).
 
 Reads data/toolpath/<name>.npz and data/robot/tattotronix.urdf; writes data/ik/<name>.npz
-(joints, q, kind, uvz_mm, xyz_m, tcp, residual, stroke) and data/metrics/ik/<name>.json.
+(joints, q, kind, uvz_mm, xyz_m, tcp, residual, stroke, provenance) and
+data/metrics/ik/<name>.json.
 Refuses to write anything when a point fails: the message names the point (panel mm),
 its residual and the reason.
 """
@@ -10,10 +11,9 @@ from __future__ import annotations
 
 import logging
 
-import numpy as np
-from omegaconf import DictConfig
-
 from tattotronix.art.artwork import artwork_name
+from tattotronix.config.schema import Config
+from tattotronix.io.artifacts import IkRecord, ToolpathRecord, make_provenance
 from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain, PinocchioTip, conditioning, verify
 from tattotronix.pipeline import solve_ik
@@ -23,14 +23,14 @@ from tattotronix.stage import run_stage
 log = logging.getLogger("tattotronix.ik")
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Solve, check against Pinocchio's FK on the generated URDF, write q and metrics."""
     name = artwork_name(cfg.artwork)
     desc = build_description(cfg.robot)
     urdf = out.require(out.path("robot", f"{desc.name}.urdf"), "robot")
-    src = out.require(out.path("toolpath", f"{name}.npz"), "toolpath")
-    with np.load(src, allow_pickle=False) as z:
-        path = {k: z[k] for k in ("uvz_mm", "xyz_m", "kind", "stroke")}
+    src = ToolpathRecord.require(out.data, name=name)
+    tpr = ToolpathRecord.load(src)
+    path = {"uvz_mm": tpr.uvz_mm, "xyz_m": tpr.xyz_m, "kind": tpr.kind, "stroke": tpr.stroke}
     ik = cfg.ik
     chain = Chain.from_description(desc)
     n = len(path["xyz_m"])
@@ -46,16 +46,19 @@ def main(cfg: DictConfig, out: Outputs) -> None:
     cond = conditioning(chain, res.q).summary()
     cond["worst_point_mm"] = [float(v) for v in path["uvz_mm"][cond["worst_index"]]]
     tcp, _ = chain.fk(res.q)
-    target = out.path("ik", f"{name}.npz")
-    np.savez_compressed(out.tmp_path(target), joints=np.array(desc.joint_names), q=res.q,
-                        tcp=tcp, residual=res.residual, **path)
+    IkRecord(joints=desc.joint_names, q=res.q, tcp=tcp, residual=res.residual,
+             uvz_mm=tpr.uvz_mm, xyz_m=tpr.xyz_m, kind=tpr.kind, stroke=tpr.stroke).save(
+        out.tmp_path(IkRecord.path(out.data, name=name)),
+        make_provenance(cfg, {"toolpath": src, "urdf": urdf}))
     metrics = {"name": name, **res.summary(), **cond, **check.summary(),
                "joint_range": {j: [float(res.q[:, i].min()), float(res.q[:, i].max())]
                                for i, j in enumerate(desc.joint_names)}}
     out.write_json(out.path("metrics", "ik", f"{name}.json"), metrics)
+    timings = res.timings()
+    out.write_timings("ik", name, timings)
     log.info("ik %s: %d points, %.1f %% converged, worst residual %.2e, %.3f s "
              "(%.0f points/s), cond %.1f .. %.1f", name, res.points, res.converged_pct,
-             res.worst_residual, res.solve_s, metrics["points_per_s"], *cond["cond"])
+             res.worst_residual, res.solve_s, timings["points_per_s"], *cond["cond"])
 
 
 if __name__ == "__main__":

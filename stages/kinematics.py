@@ -1,4 +1,6 @@
-"""Stage `kinematics`: the kinematics study of one artwork (reference sections 1.3 and 3.4).
+"""Stage `kinematics`: the kinematics study of one artwork (docs/kinematics.md; the
+original's: docs/original.md, "1.3 Zero pose" and "3.4 Conditioning, reachability,
+placement").
 
 Reads data/ik/<name>.npz (run the 'ik' stage first). Writes
 data/metrics/kinematics/<name>.json (zero-pose frames; sigma_1, sigma_5, condition and
@@ -7,7 +9,7 @@ panel reachability; the placement table; the workspace ranges) and the figures
 data/figures/<name>/manipulability.png, reachability.png, workspace.png, placement.png.
 
 The study settings (grid size, placements, workspace samples) come from
-``cfg.study.kinematics``; the IK settings (seed, damping, iterations, tolerance, needle
+``cfg.study.kinematics``; the IK settings (seed, dls_lambda, iterations, tolerance, needle
 axis) from ``cfg.ik``.
 """
 
@@ -15,14 +17,14 @@ from __future__ import annotations
 
 import logging
 import time
-import zipfile
 from typing import Any
 
 import numpy as np
-from omegaconf import DictConfig
 
 from tattotronix.art.artwork import artwork_name
+from tattotronix.config.schema import Config
 from tattotronix.errors import TattotronixError
+from tattotronix.io.artifacts import IkRecord
 from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain, PinocchioTip
 from tattotronix.robot.description import build_description
@@ -33,11 +35,8 @@ log = logging.getLogger("tattotronix.kinematics")
 
 
 def _load_ik(src: Any, n_joints: int) -> dict[str, np.ndarray]:
-    try:
-        with np.load(src, allow_pickle=False) as z:
-            data = {k: z[k] for k in ("q", "kind", "uvz_mm", "xyz_m")}
-    except (OSError, KeyError, ValueError, zipfile.BadZipFile) as exc:
-        raise TattotronixError(f"cannot read {src} ({exc}); re-run the 'ik' stage") from None
+    rec = IkRecord.load(src)
+    data = {"q": rec.q, "kind": rec.kind, "uvz_mm": rec.uvz_mm, "xyz_m": rec.xyz_m}
     n = len(data["q"])
     if (data["q"].shape != (n, n_joints) or data["uvz_mm"].shape != (n, 3)
             or data["xyz_m"].shape != (n, 3) or len(data["kind"]) != n or n == 0):
@@ -46,17 +45,17 @@ def _load_ik(src: Any, n_joints: int) -> dict[str, np.ndarray]:
     return data
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Run the study on one artwork's solved path; write the metrics and four figures."""
     name = artwork_name(cfg.artwork)
     desc = build_description(cfg.robot)
-    src = out.require(out.path("ik", f"{name}.npz"), "ik")
+    src = IkRecord.require(out.data, name=name)
     chain = Chain.from_description(desc)
     ik = _load_ik(src, chain.n)
     ikc = cfg.ik
     sc = cfg.study.kinematics
     settings: dict[str, Any] = {"seed": list(ikc.seed), "needle_axis": list(ikc.needle_axis),
-                                "damping": ikc.damping, "max_iter": ikc.max_iter,
+                                "dls_lambda": ikc.dls_lambda, "max_iter": ikc.max_iter,
                                 "tol": ikc.tol}
     # the panel origin the toolpath stage used: xyz_m = origin + uvz_mm / 1000
     origin_m = np.median(ik["xyz_m"] - ik["uvz_mm"] / 1000.0, axis=0)
@@ -115,9 +114,11 @@ def main(cfg: DictConfig, out: Outputs) -> None:
         "placement": sweep.summary(),
         "workspace": ws.summary(chain),
         "panel_origin_m": [float(v) for v in origin_m],
-        "timing": times,
     }
     out.write_json(out.path("metrics", "kinematics", f"{name}.json"), metrics)
+    times["reachability_solve_s"] = reach.solve_s
+    times.update({f"placement_{p.label}_solve_s": p.solve_s for p in sweep.rows})
+    out.write_timings("kinematics", name, times)
     s = pc.summary()
     log.info("kinematics %s: %d points, sigma5 %.5f .. %.5f, cond %.2f .. %.2f, worst at "
              "(%.2f, %.2f) mm", name, s["points"], *s["sigma5"], *s["cond"],

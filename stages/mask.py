@@ -10,11 +10,11 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-from omegaconf import DictConfig
 from PIL import Image
 
 from tattotronix.art.artwork import artwork_name
 from tattotronix.art.mask import make_mask
+from tattotronix.config.schema import Config
 from tattotronix.errors import TattotronixError
 from tattotronix.io.outputs import Outputs
 from tattotronix.stage import run_stage
@@ -22,7 +22,7 @@ from tattotronix.stage import run_stage
 log = logging.getLogger("tattotronix.stages.mask")
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Threshold (or edge-detect) the artwork raster; write the mask, preview and metrics."""
     name = artwork_name(cfg.artwork)
     src = out.require(out.path("artwork", f"{name}.png"), "artwork")

@@ -12,8 +12,7 @@ from __future__ import annotations
 
 import logging
 
-from omegaconf import DictConfig
-
+from tattotronix.config.schema import Config
 from tattotronix.io.outputs import Outputs
 from tattotronix.robot.mass import (
     INERTIALS_FILE,
@@ -34,7 +33,7 @@ log = logging.getLogger("tattotronix")
 SAME_TABLE_RTOL = 1e-5
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Write ``data/metrics/mass.json``."""
     robot = cfg.robot
     committed = table_from_config(robot)

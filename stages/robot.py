@@ -7,17 +7,16 @@ from __future__ import annotations
 
 import logging
 
-from omegaconf import DictConfig
-
+from tattotronix.config.schema import Config
 from tattotronix.io.outputs import Outputs
+from tattotronix.report.robot import generate
 from tattotronix.robot.description import build_description
-from tattotronix.robot.report import generate
 from tattotronix.stage import run_stage
 
 log = logging.getLogger("tattotronix.robot")
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Build the description, generate both model files, and report on them."""
     desc = build_description(cfg.robot)
     models = generate(desc)

@@ -12,8 +12,8 @@ import json
 import logging
 
 import numpy as np
-from omegaconf import DictConfig
 
+from tattotronix.config.schema import Config
 from tattotronix.errors import TattotronixError
 from tattotronix.io.outputs import Outputs
 from tattotronix.report.figures import arm_poses, chain_figure, mass_figure, panel_pose
@@ -23,7 +23,7 @@ from tattotronix.stage import run_stage
 log = logging.getLogger("tattotronix.figures")
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Draw the chain and the mass model."""
     desc = build_description(cfg.robot)
     urdf = out.require(out.path("robot", f"{desc.name}.urdf"), "robot")

@@ -1,4 +1,5 @@
-"""Calibration helper: hold one pulse on one PCA9685 channel (reference section 6.5).
+"""Calibration helper: hold one pulse on one PCA9685 channel (docs/original.md, "6.5
+Calibrating a servo").
 
     python stages/servo_pulse.py channel=N width_us=W [dry_run=true] [hardware.* overrides]
 
@@ -19,7 +20,7 @@ from tattotronix.hardware.pulse import hold_pulses
 
 def main(argv: list[str]) -> int:
     """Parse ``channel=``, ``width_us=``, ``dry_run=``; the rest are config overrides."""
-    from tattotronix.config.params import compose
+    from tattotronix.config.params import compose_settings
     from tattotronix.hardware.arm import calibration_from_config
     from tattotronix.robot.description import build_description
 
@@ -38,7 +39,7 @@ def main(argv: list[str]) -> int:
             channel = int(own["channel"])
         except ValueError:
             raise TattotronixError(f"channel={own['channel']}: give 0..15") from None
-        cfg = compose(rest)
+        cfg = compose_settings(rest)
         calib = calibration_from_config(cfg.hardware, build_description(cfg.robot).joint_names)
         dry = own.get("dry_run", "false").lower() in ("1", "true", "yes")
         bus = RecordingBus() if dry else open_bus(calib.device, calib.address)

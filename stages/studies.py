@@ -1,10 +1,10 @@
 """Stage `studies`: the figure and the conclusions of every closed-loop study.
 
-Reads the cases under data/metrics/{control,approach,resample,rate}/<name>/ (the stages
-of those names) and writes data/figures/<name>/{control,approach,resample,rate}.png and
-data/metrics/studies/<name>.json (what each study concludes: the best structure and
-bandwidth, the shortest approach that is enough, how many rate verdicts agree with the
-computed boundary).
+Reads the cases under data/metrics/<study>/<name>/ of every study in
+tattotronix/studies/registry.py (the stages of those names: control, approach, resample,
+rate) and writes data/figures/<name>/<study>.png and data/metrics/studies/<name>.json
+(what each study concludes: the best structure and bandwidth, the shortest approach that
+is enough, how many rate verdicts agree with the computed boundary).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from tattotronix.art.artwork import artwork_name
 from tattotronix.errors import TattotronixError
 from tattotronix.io.outputs import Outputs
 from tattotronix.stage import run_stage
-from tattotronix.studies.figures import study_figures, study_summary
+from tattotronix.studies.registry import STUDIES, study_figures, study_summary
 
 log = logging.getLogger("tattotronix.studies")
 
@@ -27,8 +27,9 @@ def main(cfg: DictConfig, out: Outputs) -> None:
     name = artwork_name(cfg.artwork)
     written = study_figures(out.data, name, out.path("figures", name), out.tmp_path)
     if not written:
+        *most, last = STUDIES
         raise TattotronixError(f"no study cases for '{name}' under {out.path('metrics')}: "
-                               "run the control, approach, resample and rate stages first")
+                               f"run the {', '.join(most)} and {last} stages first")
     summary = study_summary(out.data, name)
     out.write_json(out.path("metrics", "studies", f"{name}.json"), summary)
     log.info("studies %s: figures %s; %s", name, ", ".join(written), summary)

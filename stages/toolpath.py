@@ -2,7 +2,7 @@
 
 Reads ``data/mask/<name>.npz`` (run the ``mask`` stage first) and writes
 ``data/toolpath/<name>.npz`` (``uvz_mm``, ``kind``, ``xyz_m``, ``stroke``, ``t_s``, and per
-drawn stroke ``stroke_kind`` and ``stroke_region``), the figure
+drawn stroke ``stroke_kind`` and ``stroke_region``; ``provenance``), the figure
 ``data/figures/<name>/toolpath.png`` and ``data/metrics/toolpath/<name>.json`` (ours and,
 under ``original_order``, the same figures for the original's ordering rule).
 """
@@ -12,12 +12,11 @@ from __future__ import annotations
 import logging
 import zipfile
 
-import numpy as np
-from omegaconf import DictConfig
-
 from tattotronix.art.artwork import artwork_name
 from tattotronix.art.grid import InkMask
+from tattotronix.config.schema import Config
 from tattotronix.errors import TattotronixError
+from tattotronix.io.artifacts import ToolpathRecord, make_provenance
 from tattotronix.io.outputs import Outputs
 from tattotronix.path.figure import toolpath_figure
 from tattotronix.path.params import ToolpathParams
@@ -27,7 +26,7 @@ from tattotronix.stage import run_stage
 log = logging.getLogger("tattotronix.stages.toolpath")
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Plan the toolpath of one artwork's mask; write the path, figure and metrics."""
     name = artwork_name(cfg.artwork)
     src = out.require(out.path("mask", f"{name}.npz"), "mask")
@@ -38,23 +37,23 @@ def main(cfg: DictConfig, out: Outputs) -> None:
     params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
     tp = plan_toolpath(mask, params)
 
-    target = out.path("toolpath", f"{name}.npz")
     seq = tp.order.sequence
-    np.savez_compressed(
-        out.tmp_path(target),
+    ToolpathRecord(
         uvz_mm=tp.path.uvz_mm,
-        kind=tp.path.kind.astype(np.int8),
+        kind=tp.path.kind,
         xyz_m=tp.xyz_m,
         stroke=tp.path.stroke,
         t_s=tp.t_s,
         stroke_kind=tp.drawing.kinds[seq],
-        stroke_region=tp.drawing.region_of[seq].astype(np.int32),
-    )
+        stroke_region=tp.drawing.region_of[seq],
+    ).save(out.tmp_path(ToolpathRecord.path(out.data, name=name)),
+           make_provenance(cfg, {"mask": src}))
     toolpath_figure(
         tp, params.panel_size_mm, out.tmp_path(out.path("figures", name, "toolpath.png")), name
     )
     out.write_json(out.path("metrics", "toolpath", f"{name}.json"),
                    {"name": name, **tp.metrics_dict()})
+    out.write_timings("toolpath", name, {"ordering_s": tp.ordering.elapsed_s})
     m, o = tp.metrics, tp.original
     log.info(
         "toolpath %s: %d points, %.0f mm marked, %.0f mm travel, %d entries, %.1f s "

@@ -12,11 +12,10 @@ from __future__ import annotations
 
 import logging
 
-from omegaconf import DictConfig, OmegaConf
-
 from tattotronix.art.artwork import artwork_name
+from tattotronix.config.schema import Config
+from tattotronix.io.artifacts import IkRecord, TrajectoryRecord, make_provenance
 from tattotronix.io.outputs import Outputs
-from tattotronix.io.provenance import code_version, provenance_json
 from tattotronix.pipeline import straight_travel_baseline, trajectory_from_path
 from tattotronix.robot.description import build_description
 from tattotronix.stage import run_stage
@@ -25,25 +24,22 @@ from tattotronix.trajectory import JointPath
 log = logging.getLogger("tattotronix.trajectory")
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Plan the trajectory of one artwork and write it with its metrics."""
     name = artwork_name(cfg.artwork)
-    src = out.require(out.path("ik", f"{name}.npz"), "ik")
+    src = IkRecord.require(out.data, name=name)
     desc = build_description(cfg.robot)
     urdf = out.require(out.path("robot", f"{desc.name}.urdf"), "robot")
     path = JointPath.from_npz(src)
     traj = trajectory_from_path(cfg, path, desc)
-    config = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
-    assert isinstance(config, dict)
-    prov = provenance_json({str(k): v for k, v in config.items()},
-                           {"ik": src, "urdf": urdf}, code_version())
-    target = out.path("trajectories", f"{name}.npz")
-    traj.save_npz(out.tmp_path(target), prov)
+    prov = make_provenance(cfg, {"ik": src, "urdf": urdf})
+    traj.save_npz(out.tmp_path(TrajectoryRecord.path(out.data, name=name)), prov)
     metrics = {"name": name, **traj.metrics()}
     if traj.moves:
         base = straight_travel_baseline(cfg, path, desc)
         metrics["straight_travel_duration_s"] = base["duration_s"]
     out.write_json(out.path("metrics", "trajectory", f"{name}.json"), metrics)
+    out.write_timings("trajectory", name, traj.timings_s)
     log.info("trajectory %s: %d points (%d inserted), %.1f s for %.1f s of marking "
              "(x%.3f), %d entries, peak %.2f rad/s, %.2f rad/s^2, fastest speed %s; "
              "planned in %.3f s", name, metrics["points"], metrics["points_inserted"],

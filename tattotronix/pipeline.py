@@ -14,11 +14,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from tattotronix.art.artwork import load_artwork
 from tattotronix.art.grid import InkMask
 from tattotronix.art.mask import make_mask
-from tattotronix.kinematics import Chain, IkResult, solve_path
+from tattotronix.config.schema import Config, IkConfig
+from tattotronix.kinematics import Chain, IkOptions, IkResult, solve_path
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.plan import plan_toolpath
 from tattotronix.robot.description import RobotDescription
@@ -32,14 +34,14 @@ __all__ = ["ik_settings", "mask_of", "plan_drawing", "solve_ik", "trajectory_fro
 log = logging.getLogger("tattotronix.pipeline")
 
 
-def ik_settings(ik: Any) -> dict[str, Any]:
+def ik_settings(ik: IkConfig) -> IkOptions:
     """The IK keyword arguments of the ``ik`` config group (for densify's IK)."""
-    return {"needle_axis": list(ik.needle_axis), "damping": float(ik.damping),
+    return {"needle_axis": list(ik.needle_axis), "dls_lambda": float(ik.dls_lambda),
             "max_iter": int(ik.max_iter), "tol": float(ik.tol),
             "anchor_spacing_m": float(ik.anchor_spacing_m)}
 
 
-def solve_ik(chain: Chain, xyz_m: Any, uvz_mm: Any, ik: Any,
+def solve_ik(chain: Chain, xyz_m: ArrayLike, uvz_mm: ArrayLike, ik: IkConfig,
              progress: Callable[[int, int], None] | None = None) -> IkResult:
     """Whole-path IK with the ``ik`` config group's settings (the ik stage's solve).
 
@@ -47,13 +49,13 @@ def solve_ik(chain: Chain, xyz_m: Any, uvz_mm: Any, ik: Any,
         IkFailure: a point failed (named in panel mm, with its residual and reason).
     """
     res = solve_path(chain, xyz_m, needle_axis=list(ik.needle_axis), seed=list(ik.seed),
-                     damping=ik.damping, max_iter=ik.max_iter, tol=ik.tol,
+                     dls_lambda=ik.dls_lambda, max_iter=ik.max_iter, tol=ik.tol,
                      anchor_spacing_m=ik.anchor_spacing_m, progress=progress)
     res.raise_if_failed(uvz_mm=uvz_mm)
     return res
 
 
-def travel_planner(cfg: Any, desc: RobotDescription, chain: Chain,
+def travel_planner(cfg: Config, desc: RobotDescription, chain: Chain,
                    limits: JointLimits) -> TravelPlanner:
     """The travel planner of the config: the collision model of ``desc``, the margin, the
     clearance height and the lifts."""
@@ -61,14 +63,14 @@ def travel_planner(cfg: Any, desc: RobotDescription, chain: Chain,
 
     panel_top = float(desc.panel_centre[2] + desc.panel_size[2] / 2)
     return TravelPlanner(
-        chain, limits, CollisionModel(desc), margin_m=float(cfg.collision.margin_mm) / 1000,
-        resolution_m=float(cfg.collision.resolution_mm) / 1000,
-        clearance_z_m=panel_top + float(cfg.toolpath.clearance_mm) / 1000,
-        lifts_m=[float(h) / 1000 for h in cfg.trajectory.lifts_mm],
-        max_step_m=float(cfg.trajectory.max_step_mm) / 1000, ik=ik_settings(cfg.ik))
+        chain, limits, CollisionModel(desc), margin_m=cfg.collision.margin_m,
+        resolution_m=cfg.collision.resolution_m,
+        clearance_z_m=panel_top + cfg.toolpath.clearance_m,
+        lifts_m=cfg.trajectory.lifts_m, max_step_m=cfg.trajectory.max_step_m,
+        ik=ik_settings(cfg.ik))
 
 
-def trajectory_from_path(cfg: Any, path: JointPath, desc: RobotDescription) -> Trajectory:
+def trajectory_from_path(cfg: Config, path: JointPath, desc: RobotDescription) -> Trajectory:
     """Time an IK path with the config's feeds, speed, limits and travel planning (the
     trajectory stage)."""
     params = TrajectoryParams.from_config(cfg)
@@ -79,7 +81,7 @@ def trajectory_from_path(cfg: Any, path: JointPath, desc: RobotDescription) -> T
                             planner=planner, panel_origin_m=list(cfg.toolpath.panel_origin))
 
 
-def straight_travel_baseline(cfg: Any, path: JointPath, desc: RobotDescription
+def straight_travel_baseline(cfg: Config, path: JointPath, desc: RobotDescription
                              ) -> dict[str, float]:
     """The same path with the original's straight travel lines, timed by the same law
     (``trajectory.travel=straight``): what planned travel is compared with."""
@@ -87,10 +89,11 @@ def straight_travel_baseline(cfg: Any, path: JointPath, desc: RobotDescription
     limits = JointLimits.from_description(desc, params.accel_rad_s2)
     traj = _plan_trajectory(path, Chain.from_description(desc), limits, params,
                             ik=ik_settings(cfg.ik))
-    return {"duration_s": traj.duration_s, "travel_s": traj.metrics()["travel_s"]}
+    metrics: dict[str, Any] = traj.metrics()  # read back: JSON values
+    return {"duration_s": traj.duration_s, "travel_s": metrics["travel_s"]}
 
 
-def mask_of(cfg: Any, source: str | Path | None, name: str) -> InkMask:
+def mask_of(cfg: Config, source: str | Path | None, name: str) -> InkMask:
     """The ink mask of an artwork, as the artwork and mask stages make it.
 
     Raises:
@@ -104,7 +107,7 @@ def mask_of(cfg: Any, source: str | Path | None, name: str) -> InkMask:
     return mask
 
 
-def plan_drawing(cfg: Any, source: str | Path | None, name: str,
+def plan_drawing(cfg: Config, source: str | Path | None, name: str,
                  desc: RobotDescription) -> Trajectory:
     """Plan a drawing from its artwork file, in memory (every stage up to the trajectory).
 

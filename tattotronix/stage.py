@@ -4,7 +4,7 @@ A stage script is thin::
 
     from tattotronix.stage import run_stage
 
-    def main(cfg, io): ...           # calls the library, writes through ``io``
+    def main(cfg: Config, out: Outputs) -> None: ...  # calls the library, writes via out
 
     if __name__ == "__main__":
         run_stage("robot", main)
@@ -13,6 +13,9 @@ A stage script is thin::
   composition of ``conf/`` plus the overrides; ``-m`` sweeps work as in any Hydra app.
 * Run by DVC (``DVC_STAGE`` is set), the config is ``params.yaml`` plus any overrides in
   the command, after checking that ``params.yaml`` is not stale against ``conf/``.
+* Either way the composed config is validated, then turned once into the typed, frozen
+  settings (:class:`~tattotronix.config.schema.Config`) the body gets; the library takes
+  those (or one section of them), never a ``DictConfig``.
 * A :class:`TattotronixError` (bad input, unreachable drawing, ...) ends the run with its
   one-line message and exit code 2; no traceback, and no partial output.
 """
@@ -28,11 +31,15 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from tattotronix.config.params import load_params
+from tattotronix.config.params import load_params, to_settings
+from tattotronix.config.schema import Config
 from tattotronix.errors import ConfigError, TattotronixError
 from tattotronix.io.outputs import Outputs
 
-__all__ = ["logs_to_stderr", "run_stage"]
+__all__ = ["StageBody", "logs_to_stderr", "run_stage"]
+
+#: a stage's body: ``main(cfg, out)`` of ``stages/<name>.py``
+StageBody = Callable[[Config, Outputs], None]
 
 log = logging.getLogger("tattotronix")
 
@@ -52,14 +59,19 @@ def _setup_logging() -> None:
     log.setLevel(logging.INFO)
 
 
-def _execute(name: str, body: Callable[[DictConfig, Outputs], None], cfg: DictConfig,
+def _execute(name: str, body: StageBody, cfg: DictConfig,
              sweep_overrides: list[str] | None = None) -> None:
     _setup_logging()
     t0 = time.perf_counter()
-    out = Outputs(cfg.paths.data, sweep_overrides)
+    try:
+        settings = to_settings(cfg)  # the one conversion: typed and frozen from here on
+    except ConfigError as exc:
+        print(f"{name}: error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None
+    out = Outputs(settings.paths.data, sweep_overrides)
     try:
         with out.transaction():
-            body(cfg, out)
+            body(settings, out)
     except (TattotronixError, ConfigError) as exc:
         print(f"{name}: error: {exc}", file=sys.stderr)
         raise SystemExit(2) from None
@@ -68,8 +80,6 @@ def _execute(name: str, body: Callable[[DictConfig, Outputs], None], cfg: DictCo
 
 def _validated(cfg: DictConfig) -> DictConfig:
     """Merge into the root schema (a second guard for configs Hydra did not type)."""
-    from tattotronix.config.schema import Config
-
     try:
         plain = OmegaConf.to_container(cfg, resolve=True)
         merged = OmegaConf.merge(OmegaConf.structured(Config), plain)
@@ -80,7 +90,7 @@ def _validated(cfg: DictConfig) -> DictConfig:
     return merged
 
 
-def run_stage(name: str, body: Callable[[DictConfig, Outputs], None]) -> None:
+def run_stage(name: str, body: StageBody) -> None:
     """Run a stage body with its config. See the module docstring."""
     argv = sys.argv[1:]
     if os.environ.get("DVC_STAGE"):

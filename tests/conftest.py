@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from tattotronix.config.params import compose
+from tattotronix.config.params import compose_settings
 from tattotronix.robot.description import RobotDescription, build_description
 from tattotronix.robot.mjcf import to_mjcf
 from tattotronix.robot.urdf import to_urdf
@@ -40,7 +40,7 @@ def write_models(desc: RobotDescription, folder: Path) -> tuple[Path, Path]:
 @pytest.fixture(scope="session")
 def desc() -> RobotDescription:
     """The default description (printed masses, tattoo pen, primitive geometry)."""
-    return build_description(compose().robot)
+    return build_description(compose_settings().robot)
 
 
 def small_art(path: Path) -> Path:

@@ -1,4 +1,5 @@
-"""The actuator study (reference section 6.6) and its stage."""
+"""The actuator study (docs/actuators.md; docs/original.md, "6.6 The actuator study") and
+its stage."""
 
 from __future__ import annotations
 
@@ -11,9 +12,10 @@ from typing import Any
 import numpy as np
 import pytest
 
-from tattotronix.config.params import compose
+from tattotronix.config.params import compose_settings
 from tattotronix.config.schema import ActuatorOption
 from tattotronix.errors import TattotronixError
+from tattotronix.io.artifacts import StudySeriesRecord, make_provenance
 from tattotronix.kinematics import Chain, solve_path
 from tattotronix.kinematics.synthetic import logo_like_strokes, stroke_path
 from tattotronix.robot.description import RobotDescription
@@ -45,7 +47,7 @@ OPTIONS = ("as built, PCA9685 at 50 Hz", "as built, Arduino Servo library",
 
 @pytest.fixture(scope="module")
 def cfg() -> Any:
-    return compose()
+    return compose_settings()
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +57,7 @@ def chain(desc: RobotDescription) -> Chain:
 
 @pytest.fixture(scope="module")
 def decl(cfg: Any, chain: Chain) -> Declared:
-    return declared(cfg.study.actuator, cfg.robot, cfg.hardware.servos.frame_hz,
+    return declared(cfg.study.actuator, cfg.robot, cfg.hardware.servos["frame_hz"],
                     chain.joint_names)
 
 
@@ -293,8 +295,8 @@ def stage_runs(tmp_path_factory: pytest.TempPathFactory,
     (good / "trajectories").mkdir(parents=True)
     empty.mkdir(parents=True)
     art = small_art(base / "small.png")
-    traj = plan_drawing(compose(SMALL), art, "small", desc)
-    traj.save_npz(good / "trajectories" / "small.npz", "{}")
+    traj = plan_drawing(compose_settings(SMALL), art, "small", desc)
+    traj.save_npz(good / "trajectories" / "small.npz", make_provenance({}, {}, "test"))
     return run_side_by_side("actuator", {"good": good, "empty": empty},
                             "artwork.name=small", *SMALL)
 
@@ -315,17 +317,17 @@ def test_stage_writes_metrics_series_and_figure(stage_runs: Any, chain: Chain) -
 
     # regenerated in this process from the same trajectory: equal to 1e-12
     traj = load_trajectory(data / "trajectories" / "small.npz")
-    again = study_from_config(compose(SMALL), chain, traj)
+    again = study_from_config(compose_settings(SMALL), chain, traj)
     _assert_close(m, {"name": "small", **metrics(again),
                       "series_file": "studies/actuator/small.npz"})
-    with np.load(data / "studies" / "actuator" / "small.npz", allow_pickle=False) as z:
-        s = series_arrays(again)
-        assert set(z.files) == set(s)
-        for k, v in s.items():
-            if v.dtype.kind == "f":
-                np.testing.assert_allclose(z[k], v, rtol=1e-12, atol=1e-12)
-            else:
-                np.testing.assert_array_equal(z[k], v)
+    z = StudySeriesRecord.load(data / "studies" / "actuator" / "small.npz", "actuator").series
+    s = series_arrays(again)
+    assert set(z) == set(s)
+    for k, v in s.items():
+        if v.dtype.kind == "f":
+            np.testing.assert_allclose(z[k], v, rtol=1e-12, atol=1e-12)
+        else:
+            np.testing.assert_array_equal(z[k], v)
 
 
 def test_stage_without_trajectory_names_the_trajectory_stage(stage_runs: Any) -> None:

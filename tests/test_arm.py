@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tattotronix.config.params import compose
+from tattotronix.config.params import compose_settings
 from tattotronix.errors import TattotronixError
 from tattotronix.hardware import PCA9685, RecordingBus, default_calibration
 from tattotronix.hardware.arm import ArmState, ramp
@@ -203,13 +203,13 @@ def test_bus_error_half_way_then_resume_completes_with_a_fresh_approach(data: Pa
     phases = [p["phase"] for p in second]
     assert "approach" in phases and phases.index("approach") < phases.index("draw")
     # the approach comes down the needle axis onto the stopped frame from clearance
-    cfg = compose()
+    cfg = compose_settings()
     from tattotronix.robot.description import build_description
 
     chain = Chain.from_description(build_description(cfg.robot))
     appr = np.array([p["q"] for p in second if p["phase"] == "approach"])
     z = chain.fk(appr)[0][:, 2]
-    clearance = cfg.toolpath.panel_origin[2] + cfg.toolpath.clearance_mm / 1e3
+    clearance = cfg.toolpath.panel_origin[2] + cfg.toolpath.clearance_m
     assert z.max() == pytest.approx(clearance, abs=1e-5)
     assert np.all(np.diff(z[int(np.argmax(z)):]) <= 1e-9)  # then only down
     assert json.loads((data / "arm" / "state.json").read_text())["status"] == "done"
@@ -233,12 +233,12 @@ def test_ctrl_c_lifts_the_needle_saves_and_switches_off(data: Path) -> None:
     assert state["status"] == "paused" and 0 < state["frame"] < state["frames"]
     assert _transcript(data)[-1] == ALL_OFF
     last = _poses(data)[-1]
-    cfg = compose()
+    cfg = compose_settings()
     from tattotronix.robot.description import build_description
 
     chain = Chain.from_description(build_description(cfg.robot))
     z = chain.fk(np.array([last["q"]]))[0][0, 2]
-    clearance = cfg.toolpath.panel_origin[2] + cfg.toolpath.clearance_mm / 1e3
+    clearance = cfg.toolpath.panel_origin[2] + cfg.toolpath.clearance_m
     assert z >= clearance - 1e-5  # the needle is up
     resumed = _arm(data, "resume=true")
     assert resumed.returncode == 0, resumed.stderr
@@ -268,10 +268,10 @@ def test_the_arm_refuses_a_colliding_drawing_before_the_bus(desc: RobotDescripti
     before the program is compiled or the bus opened): a sweep of the shoulder that folds
     the arm into the bench is refused, naming the pair; a small move near home is not."""
     from tattotronix.collision.check import CollisionRefused
-    from tattotronix.config.params import compose
+    from tattotronix.config.params import compose_settings
     from tattotronix.hardware.arm import check_drawing_clear
 
-    cfg = compose()
+    cfg = compose_settings()
     t = np.linspace(0.0, 2.0, 21)
     fold = np.zeros((21, 5))
     fold[:, 1] = np.linspace(0.0, 1.57, 21)

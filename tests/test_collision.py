@@ -19,19 +19,15 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
 from tattotronix.collision import shapes
-from tattotronix.collision.check import (
-    CollisionRefused,
-    TrajectoryClearance,
-    check_trajectory,
-    require_checked,
-)
+from tattotronix.collision.check import CollisionRefused, TrajectoryClearance, check_trajectory
 from tattotronix.collision.model import CollisionModel, parse_pose
 from tattotronix.collision.pairs import body_pairs
-from tattotronix.config.params import compose
+from tattotronix.config.params import compose_settings
 from tattotronix.errors import TattotronixError
+from tattotronix.hardware.gate import require_checked
 from tattotronix.io.provenance import file_sha256
+from tattotronix.report.robot import collision_pairs_report, zero_pose_report
 from tattotronix.robot.description import RobotDescription, build_description
-from tattotronix.robot.report import collision_pairs_report, zero_pose_report
 from tattotronix.robot.stl import mesh_dir_files
 
 from .conftest import PYTHON, ROOT, small_art, stage_env
@@ -41,7 +37,7 @@ Array = NDArray[np.float64]
 HOME = (0.0, 0.0, 0.0, 0.0, 0.0)
 INTO_BENCH = (0.0, 1.57, 0.0, 0.0, 0.0)  # the arm folded forward into the bench
 THROUGH_SHOULDER = (0.0, 1.5, 1.5, 0.0, 0.0)  # the wrist folded back through the shoulder
-# reference section 10: the 6 allowed of the 21 link pairs, and why
+# docs/original.md, "Allowed collision pairs": the 6 allowed of the 21 link pairs, and why
 ALLOWED_LINK_PAIRS = {
     ("base_link", "shoulder_link"): "joint_1",
     ("shoulder_link", "upper_arm_link"): "joint_2",
@@ -70,7 +66,7 @@ def kdop(desc: RobotDescription) -> CollisionModel:
 
 @pytest.fixture(scope="module")
 def mesh_desc(cad_dir: Path) -> RobotDescription:
-    return build_description(compose([f"robot.cad_dir={cad_dir}"]).robot)
+    return build_description(compose_settings([f"robot.cad_dir={cad_dir}"]).robot)
 
 
 @pytest.fixture(scope="module")
@@ -139,7 +135,7 @@ def test_allowed_link_pairs_are_the_six_hinges_and_the_pen_mount(desc: RobotDesc
 def test_allowed_pairs_follow_the_tree(override: str, link_pairs: int,
                                        allowed: set[tuple[str, str]], checked_too: set[str]
                                        ) -> None:
-    d = build_description(compose([override]).robot)
+    d = build_description(compose_settings([override]).robot)
     links = [p for p in body_pairs(d) if not p.environment]
     assert len(links) == link_pairs
     assert {(p.a, p.b) for p in links if not p.checked} == allowed
@@ -613,15 +609,15 @@ def test_small_drawing_is_proven_clear_on_the_meshes(tmp_path: Path, cad_dir: Pa
     from tattotronix.pipeline import plan_drawing
 
     art = small_art(tmp_path / "small.png")
-    cfg = compose([f"artwork.source={art}", "mask.width_mm=24", "mask.min_region_mm2=0.5",
+    cfg = compose_settings([f"artwork.source={art}", "mask.width_mm=24", "mask.min_region_mm2=0.5",
                    f"robot.cad_dir={cad_dir}"])
     desc = build_description(cfg.robot)
     traj = plan_drawing(cfg, art, "small", desc)
     model = CollisionModel(desc)
-    margin = float(cfg.collision.margin_mm) / 1000
-    plunge = float(cfg.toolpath.plunge_mm) / 1000
+    margin = cfg.collision.margin_m
+    plunge = cfg.toolpath.plunge_m
     rep = check_trajectory(model, traj.t, traj.q, margin_m=margin, plunge_m=plunge,
-                           resolution_m=float(cfg.collision.resolution_mm) / 1000)
+                           resolution_m=cfg.collision.resolution_m)
     assert rep.ok, rep.message()
     assert rep.events == [] and rep.collisions == 0
     assert rep.min_clearance_m.min() > margin
@@ -643,15 +639,15 @@ def test_the_built_in_drawing_is_clear_with_the_meshes(cad_dir: Path) -> None:
     Its least clearance is reported, and the proven lower bound lies under it."""
     from tattotronix.pipeline import plan_drawing
 
-    cfg = compose([f"robot.cad_dir={cad_dir}"])
+    cfg = compose_settings([f"robot.cad_dir={cad_dir}"])
     desc = build_description(cfg.robot)
     traj = plan_drawing(cfg, "emblem", "emblem", desc)
     assert [m.kind for m in traj.moves][:1] == ["from_home"]
     model = CollisionModel(desc)
     assert model.geometry == "mesh hulls"
-    rep = check_trajectory(model, traj.t, traj.q, margin_m=float(cfg.collision.margin_mm) / 1e3,
-                           plunge_m=float(cfg.toolpath.plunge_mm) / 1e3,
-                           resolution_m=float(cfg.collision.resolution_mm) / 1e3)
+    rep = check_trajectory(model, traj.t, traj.q, margin_m=cfg.collision.margin_m,
+                           plunge_m=cfg.toolpath.plunge_m,
+                           resolution_m=cfg.collision.resolution_m)
     assert rep.ok, rep.message()
     m = rep.metrics()
     assert m["collisions"] == 0 and m["below_margin"] == 0

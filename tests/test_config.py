@@ -123,8 +123,9 @@ def test_dvc_repro_on_a_clean_clone(tmp_path: Path) -> None:
     --queue`, then `dvc exp show`, work."""
     clone = tmp_path / "clone"
     subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True)
+    # PYTHONPATH: the clone runs its own code, not the checkout the tests started from
     env = {**ENV, "GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME": "t",
-           "GIT_COMMITTER_EMAIL": "t@t"}
+           "GIT_COMMITTER_EMAIL": "t@t", "PYTHONPATH": str(clone)}
 
     def run(*argv: str) -> subprocess.CompletedProcess[str]:
         return subprocess.run(list(argv), cwd=clone, env=env, capture_output=True, text=True)

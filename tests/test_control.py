@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from tattotronix.config.params import compose
+from tattotronix.config.params import compose_settings
+from tattotronix.config.schema import PlantConfig, to_dict
 from tattotronix.control.controller import Controller, Gains, structure_of
 from tattotronix.control.dynamics import Dynamics
 from tattotronix.control.ink import compare_ink, ink_grid, rasterise_ink
@@ -25,7 +27,7 @@ from tattotronix.trajectory import Trajectory
 
 from .conftest import small_art
 
-# reference/original.md section 5.3
+# the original's published tuning (docs/original.md, "5.3 Tuning by pole placement")
 Q_REF_TUNE = np.array([-0.0112645418, 0.5611492471, 0.4417099134, -7.58e-9, 0.5679371434])
 KP_20 = np.array([4.3224, 3.1959, 0.7526, 0.0218, 0.0362])
 KI_20 = np.array([28.8158, 21.3063, 5.0172, 0.1456, 0.2414])
@@ -42,12 +44,14 @@ def small_drawing(tmp_path_factory: pytest.TempPathFactory, desc: RobotDescripti
                   ) -> Trajectory:
     """The small artwork, 24 mm wide, planned in memory with the default settings."""
     art = small_art(tmp_path_factory.mktemp("art") / "small.png")
-    cfg = compose([f"artwork.source={art}", "mask.width_mm=24", "mask.min_region_mm2=0.5"])
+    cfg = compose_settings([f"artwork.source={art}", "mask.width_mm=24",
+                            "mask.min_region_mm2=0.5"])
     return plan_drawing(cfg, art, "small", desc)
 
 
 def make(backend: str, models: tuple[Path, Path], desc: RobotDescription, **kw: object):
-    settings = PlantSettings(gravity=desc.gravity, tip_frame=desc.tip_frame, **kw)  # type: ignore[arg-type]
+    plant = replace(PlantConfig(), **kw)  # type: ignore[arg-type]
+    settings = PlantSettings.from_config(plant, desc.gravity, desc.tip_frame)
     return make_plant(backend, settings, urdf=models[0], mjcf=models[1],
                       joint_names=desc.joint_names, lower=desc.lower, upper=desc.upper)
 
@@ -315,7 +319,7 @@ def test_run_metrics_never_hold_nan(tmp_path: Path) -> None:
 
 
 def test_config_has_the_draw_defaults() -> None:
-    cfg = compose()
+    cfg = compose_settings()
     assert cfg.controller.wn == 160.0 and cfg.controller.rate_hz == 1000.0
     assert cfg.controller.structure.name == "pid_g_v"
     assert cfg.backend.name == "mujoco" and cfg.plant.damping == 0.0
@@ -326,26 +330,24 @@ def test_config_has_the_draw_defaults() -> None:
 
 def test_stored_drawing_is_played_as_is_and_retimed_for_another_speed(
         tmp_path: Path, small_drawing: Trajectory, desc: RobotDescription) -> None:
-    from omegaconf import OmegaConf
-
     from tattotronix.control.drawing import resolve_drawing
     from tattotronix.io.provenance import provenance_json
 
-    cfg = compose(["art=small"])
+    cfg = compose_settings(["art=small"])
     (tmp_path / "trajectories").mkdir()
     (tmp_path / "ik").mkdir()
-    config = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
-    assert isinstance(config, dict)
+    config = to_dict(cfg)
     small_drawing.save_npz(tmp_path / "trajectories" / "small.npz",
                            provenance_json({str(k): v for k, v in config.items()}, {}, "test"))
     tr = small_drawing
     ik = tr.source >= 0  # the IK path's own points (not densified, not planned travel)
     np.savez(tmp_path / "ik" / "small.npz", joints=np.array(tr.joints), q=tr.q[ik],
              tcp=tr.tcp[ik], kind=tr.kind[ik], uvz_mm=tr.uvz_mm[ik], xyz_m=tr.tcp[ik],
-             stroke=np.zeros(int(ik.sum())), residual=np.zeros(int(ik.sum())))
+             stroke=np.zeros(int(ik.sum())), residual=np.zeros(int(ik.sum())),
+             provenance=np.array("{}"))
     same = resolve_drawing(cfg, tmp_path, desc)
     assert same.origin == "stored" and np.array_equal(same.q, tr.q)
-    fast = resolve_drawing(compose(["art=small", "speed=2"]), tmp_path, desc)
+    fast = resolve_drawing(compose_settings(["art=small", "speed=2"]), tmp_path, desc)
     assert fast.origin == "retimed" and fast.t[-1] < 0.75 * tr.t[-1]
     with pytest.raises(TattotronixError, match="available are small, emblem, portrait"):
-        resolve_drawing(compose(["art=other"]), tmp_path, desc)
+        resolve_drawing(compose_settings(["art=other"]), tmp_path, desc)

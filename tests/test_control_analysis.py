@@ -1,4 +1,5 @@
-"""Loop facts of reference sections 5.3-5.4: gains, modes, the sampled loop, overshoots."""
+"""Loop facts (docs/original.md, "5.3 Tuning by pole placement" and "5.4 Loop facts"): gains,
+modes, the sampled loop, overshoots."""
 
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ GRAVITY = 9.80665
 Q_REF_TUNE = np.array([-0.0112645418, 0.5611492471, 0.4417099134, -7.58e-9, 0.5679371434])
 WN = 20.0
 
-# reference table, section 5.3
+# the original's table (docs/original.md, "5.3 Tuning by pole placement")
 J_EFF = np.array([3.601969e-3, 2.663281e-3, 6.271488e-4, 1.820259e-5, 3.017853e-5])
 KP = np.array([4.3224, 3.1959, 0.7526, 0.0218, 0.0362])
 KI = np.array([28.8158, 21.3063, 5.0172, 0.1456, 0.2414])
@@ -40,7 +41,7 @@ OVERSHOOT_PID = 100.0 * (math.sqrt(3.0) - 1.0) * math.exp(math.sqrt(3.0) - 3.0) 
 
 
 def closed_form_loop(lam: float, x: float, c: float) -> np.ndarray:
-    """A + lam B k of reference section 5.4."""
+    """A + lam B k of the sampled loop (docs/original.md, "5.4 Loop facts")."""
     a = np.array([[1.0, 1.0, 0.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 1.0]])
     b = np.array([c, 1.0, 0.0])
     k = np.array([-(3 * x**2 + x**3), -3 * x, x**3])

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from tattotronix.config.params import compose
+from tattotronix.config.params import compose_settings
 from tattotronix.control.analysis import step_overshoot_pct
 from tattotronix.kinematics import Chain, PinocchioTip, solve_point
 from tattotronix.report import figures as F
@@ -135,7 +135,7 @@ def test_tracking_figure(tmp_path: Path) -> None:
 
 def test_mass_figure_with_and_without_poses(desc: RobotDescription, models: tuple[Path, Path],
                                             tmp_path: Path) -> None:
-    robot = compose().robot
+    robot = compose_settings().robot
     report = json.loads(json.dumps(mass_report(table_from_config(robot), robot)))
     poses = F.arm_poses(desc, models[0], np.zeros(5))
     F.mass_figure(report, tmp_path / "mass.png", poses)
@@ -241,7 +241,7 @@ def _layout(data: Path, desc: RobotDescription, tiny: dict[str, np.ndarray]) -> 
     run = data / "runs" / f"{NAME}-mujoco"
     run.mkdir(parents=True)
     np.savez_compressed(run / "log.npz", **_run_log(desc, tiny))
-    robot = compose().robot
+    robot = compose_settings().robot
     (data / "metrics").mkdir(parents=True)
     (data / "metrics" / "mass.json").write_text(
         json.dumps(mass_report(table_from_config(robot), robot)))

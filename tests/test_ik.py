@@ -13,7 +13,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from tattotronix.config.params import compose
+from tattotronix.config.params import compose_settings
 from tattotronix.errors import TattotronixError
 from tattotronix.kinematics import (
     Chain,
@@ -32,7 +32,7 @@ from tattotronix.robot.description import RobotDescription, build_description
 from tattotronix.robot.urdf import to_urdf
 
 DOWN = np.array([0.0, 0.0, -1.0])
-TCP_ZERO_MM = (258.96, -9.444, 245.5775)  # reference section 1.3
+TCP_ZERO_MM = (258.96, -9.444, 245.5775)  # docs/original.md, "1.3 Zero pose"
 
 
 @pytest.fixture(scope="module")
@@ -155,7 +155,7 @@ def test_first_point_and_warm_start_follow_the_path(chain: Chain, ref: Pinocchio
     s = solve_path_sequential(ref, x)
     seeds = np.vstack([SEED, s.q[:-1]]).T.copy()
     b = _solve_lockstep(chain, np.ascontiguousarray(x.T), None, (0.0, 0.0, -1.0), seeds,
-                        damping=1e-3, max_iter=200, tol=1e-6)
+                        dls_lambda=1e-3, max_iter=200, tol=1e-6)
     assert np.array_equal(b.iterations, s.iterations)
     assert np.abs(b.q.T - s.q).max() < 1e-12
     assert np.abs(b.residual - s.residual).max() < 1e-15
@@ -338,7 +338,8 @@ def test_logo_like_path_matches_reference_and_original_ranges(chain: Chain,
     s = solve_path_sequential(ref, path.xyz_m)
     assert s.ok and np.abs(b.q - s.q).max() < 1e-4
     c = conditioning(chain, b.q).summary()
-    # the same kind of numbers as the original's logo (section 3.4): sigma_1 ~ 1.75
+    # the same kind of numbers as the original's logo (docs/original.md, "3.4 Conditioning,
+    # reachability, placement"): sigma_1 ~ 1.75
     assert 1.7 < c["sigma1"][0] <= c["sigma1"][1] < 1.8
     assert 0.03 < c["sigma5"][0] and c["cond"][1] < 60
 
@@ -351,15 +352,22 @@ def _ik_stage(data: Path, *overrides: str) -> subprocess.CompletedProcess[str]:
                           cwd=data, env=env, capture_output=True, text=True)
 
 
+def _toolpath_rest(n: int) -> dict[str, np.ndarray]:
+    """The toolpath keys the ik stage does not use, and a provenance."""
+    return {"t_s": np.arange(n, dtype=float), "stroke_kind": np.ones(1, np.int8),
+            "stroke_region": np.zeros(1, np.int32), "provenance": np.array("{}")}
+
+
 def test_ik_stage_refuses_an_unreachable_placement_and_writes_nothing(tmp_path: Path) -> None:
-    desc = build_description(compose().robot)
+    desc = build_description(compose_settings().robot)
     (tmp_path / "robot").mkdir()
     (tmp_path / "robot" / "tattotronix.urdf").write_text(to_urdf(desc))
     (tmp_path / "toolpath").mkdir()
     uvz = np.array([[0.0, 0.0, -1.5], [10.0, 0.0, -1.5], [190.0, 0.0, -1.5], [0.0, 5.0, -1.5]])
     xyz = np.array([0.21, 0.0, 0.005]) + uvz / 1000.0
     np.savez(tmp_path / "toolpath" / "t.npz", uvz_mm=uvz, xyz_m=xyz,
-             kind=np.array([2, 1, 1, 1], dtype=np.int8), stroke=np.zeros(4, dtype=np.int32))
+             kind=np.array([2, 1, 1, 1], dtype=np.int8), stroke=np.zeros(4, dtype=np.int32),
+             **_toolpath_rest(4))
     run = _ik_stage(tmp_path)
     assert run.returncode == 2, run.stderr
     assert "190.00" in run.stderr and "residual" in run.stderr
@@ -367,7 +375,8 @@ def test_ik_stage_refuses_an_unreachable_placement_and_writes_nothing(tmp_path: 
     # the same path without the unreachable point is solved and written
     keep = [0, 1, 3]
     np.savez(tmp_path / "toolpath" / "t.npz", uvz_mm=uvz[keep], xyz_m=xyz[keep],
-             kind=np.array([2, 1, 1], dtype=np.int8), stroke=np.zeros(3, dtype=np.int32))
+             kind=np.array([2, 1, 1], dtype=np.int8), stroke=np.zeros(3, dtype=np.int32),
+             **_toolpath_rest(3))
     run = _ik_stage(tmp_path)
     assert run.returncode == 0, run.stderr
     with np.load(tmp_path / "ik" / "t.npz", allow_pickle=False) as z:

@@ -1,4 +1,5 @@
-"""The kinematics study (reference sections 1.3 and 3.4) and its stage."""
+"""The kinematics study (docs/kinematics.md; docs/original.md, "1.3 Zero pose" and "3.4
+Conditioning, reachability, placement") and its stage."""
 
 from __future__ import annotations
 
@@ -26,7 +27,9 @@ from tattotronix.studies.kinematics import (
 from .conftest import run_side_by_side
 
 ORIGIN_M = np.array([0.21, 0.0, 0.005])
-REACH_PCT = 98.419  # reference section 3.4: 747 of 759 cells
+#: the original's reachability, 747 of 759 cells (docs/original.md, "3.4 Conditioning,
+#: reachability, placement")
+REACH_PCT = 98.419
 FIGURES = ("manipulability.png", "reachability.png", "workspace.png", "placement.png")
 
 
@@ -189,7 +192,8 @@ def _write_ik(data: Path, desc: RobotDescription, chain: Chain) -> None:
     (data / "ik").mkdir(parents=True)
     np.savez_compressed(data / "ik" / "test.npz", joints=np.array(desc.joint_names), q=res.q,
                         tcp=tcp, residual=res.residual, uvz_mm=path.uvz_mm, xyz_m=path.xyz_m,
-                        kind=path.kind, stroke=np.zeros(len(path), np.int32))
+                        kind=path.kind, stroke=np.zeros(len(path), np.int32),
+                        provenance=np.array("{}"))
 
 
 @pytest.fixture(scope="module")

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tattotronix.config.params import PROJECT_ROOT, compose
+from tattotronix.config.params import PROJECT_ROOT, compose_settings
 from tattotronix.errors import TattotronixError
 from tattotronix.io.outputs import Outputs
 from tattotronix.robot.mass import (
@@ -82,7 +82,7 @@ def cad_dir() -> Path:
 
 @pytest.fixture
 def cad_cfg(cad_dir):
-    return compose([f"robot.cad_dir={cad_dir.resolve()}"])
+    return compose_settings([f"robot.cad_dir={cad_dir.resolve()}"])
 
 
 @pytest.fixture
@@ -92,7 +92,7 @@ def cad_table(cad_cfg):
 
 @pytest.fixture(scope="module")
 def default_cfg():
-    return compose()
+    return compose_settings()
 
 
 # --------------------------------------------------------------- integration checks
@@ -296,15 +296,17 @@ def test_cad_dir_missing_meshes(tmp_path, default_cfg):
 
 
 def test_printed_table_on_cubes(tmp_path):
-    """Layout logic without the real meshes: servos where section 1.7 puts them."""
-    cfg = compose([f"robot.cad_dir={_cube_dir(tmp_path / 'm', link_names(compose().robot))}"])
+    """Layout logic without the real meshes: servos where the original put them
+    (docs/original.md, "1.7 Mass properties")."""
+    cubes = _cube_dir(tmp_path / "m", link_names(compose_settings().robot))
+    cfg = compose_settings([f"robot.cad_dir={cubes}"])
     robot = cfg.robot
     table = printed_table(robot)
     assert list(table) == link_names(robot)
     rho = shell_density(robot)
     assert rho == pytest.approx(434.0)
     shell_kg = rho * (3.0 * robot.mesh_scale) ** 3
-    big, small = robot.servos.MG996R.mass, robot.servos.SG90.mass
+    big, small = robot.servos["MG996R"].mass, robot.servos["SG90"].mass
     expected = {
         "base_link": big, "shoulder_link": 2 * big, "upper_arm_link": big,
         "forearm_link": big, "wrist_link": small, "tool_mount_link": small,
@@ -325,10 +327,10 @@ def test_printed_table_on_cubes(tmp_path):
 
 
 def test_bad_servo_mount_refused(default_cfg):
-    cfg = compose(["robot.servo_mounts=[{link: base_link, servo: MG996R, at: joint_3}]"])
+    cfg = compose_settings(["robot.servo_mounts=[{link: base_link, servo: MG996R, at: joint_3}]"])
     with pytest.raises(TattotronixError, match="must sit on upper_arm_link"):
         servo_parts(cfg.robot, "base_link", None)
-    cfg = compose(["robot.servo_mounts=[{link: base_link, servo: XL320, at: joint_1}]"])
+    cfg = compose_settings(["robot.servo_mounts=[{link: base_link, servo: XL320, at: joint_1}]"])
     with pytest.raises(TattotronixError, match="unknown servo 'XL320'"):
         servo_parts(cfg.robot, "base_link", None)
 
@@ -366,7 +368,7 @@ def _stage_module():
 def test_stage_without_meshes_uses_committed_table(tmp_path):
     import json
 
-    cfg = compose([f"paths.data={tmp_path}"])
+    cfg = compose_settings([f"paths.data={tmp_path}"])
     out = Outputs(cfg.paths.data)
     with out.transaction():
         _stage_module().main(cfg, out)
@@ -378,7 +380,8 @@ def test_stage_without_meshes_uses_committed_table(tmp_path):
 
 # ----------------------------------------------------------------- with the meshes
 
-#: reference/original.md section 7: volume (cm^3) and area (cm^2) per link
+#: the original's volume (cm^3) and area (cm^2) per link (docs/original.md, "7 Mass-properties
+#: method")
 PUBLISHED_MESH = {
     "base_link": (117.538, 757.03),
     "shoulder_link": (110.661, 453.47),
@@ -388,7 +391,8 @@ PUBLISHED_MESH = {
     "tool_mount_link": (10.698, 61.99),
 }
 
-#: reference/original.md section 1.7: mass kg, CoM m, [ixx ixy ixz iyy iyz izz] kg m^2
+#: the original's table (docs/original.md, "1.7 Mass properties"): mass kg, CoM m,
+#: [ixx ixy ixz iyy iyz izz] kg m^2
 PUBLISHED = {
     "base_link": (0.106011703, (-0.011322, -0.001524, 0.034301),
                   (7.074397e-05, -7.495639e-06, -2.537345e-05, 1.410376e-04, -2.213197e-06,
@@ -443,12 +447,14 @@ def test_tensors_valid_and_closed(cad_table):
         assert inertia_problems(p.inertia) == [], link
         assert p.closure_residual < 1e-2, link
     worst = max(p.closure_residual for p in cad_table.values())
-    assert worst == pytest.approx(3.17e-3, abs=5e-5)  # the tool mount (section 7)
+    # the tool mount, as the original found (docs/original.md, "7 Mass-properties method")
+    assert worst == pytest.approx(3.17e-3, abs=5e-5)
 
 
 @pytest.mark.cad
 def test_matches_published_table(cad_table):
-    """CoM and every inertia entry agree with section 1.7 to its printed precision.
+    """CoM and every inertia entry agree with the original's table (docs/original.md, "1.7
+    Mass properties") to its printed precision.
 
     Found: mass within 1.2e-9 relative, CoM within 0.46 um (the table prints 1 um),
     inertia entries within 3.5e-7 relative (the table prints 7 significant digits).
@@ -473,7 +479,7 @@ def test_committed_yaml_is_generated_from_meshes(cad_table):
 def test_stage_with_meshes(tmp_path, cad_dir):
     import json
 
-    cfg = compose([f"paths.data={tmp_path}", f"robot.cad_dir={cad_dir.resolve()}"])
+    cfg = compose_settings([f"paths.data={tmp_path}", f"robot.cad_dir={cad_dir.resolve()}"])
     out = Outputs(cfg.paths.data)
     with out.transaction():
         _stage_module().main(cfg, out)

@@ -1,8 +1,9 @@
 """The PCA9685 driver: prescaler, exact register bytes, refusals and the safe exits.
 
-Byte-exact expectations are reference/original.md section 6.2; the transcript line format
-is design.md section 8. Nothing here sleeps or touches real hardware: the oscillator wait
-is injected and the bus is :class:`RecordingBus`.
+Byte-exact expectations are the original's (docs/original.md, "6.2 The PCA9685 driver");
+the transcript line format is the one other tools rely on (README, "The real arm").
+Nothing here sleeps or touches real hardware: the oscillator wait is injected and the bus
+is :class:`RecordingBus`.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""The one robot description: zero pose, the three loaders, the reference figures."""
+"""The one robot description: zero pose, the three loaders, the original's figures
+(docs/original.md)."""
 
 from __future__ import annotations
 
@@ -8,17 +9,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tattotronix.config.params import compose
+from tattotronix.config.params import compose_settings
 from tattotronix.control.dynamics import effective_inertia
 from tattotronix.errors import TattotronixError
+from tattotronix.report.robot import zero_pose_report
 from tattotronix.robot.description import RobotDescription, build_description
 from tattotronix.robot.loaders import MujocoArm, PinocchioArm, PybulletArm
-from tattotronix.robot.report import zero_pose_report
 from tattotronix.robot.urdf import to_urdf
 
 from .conftest import write_models
 
-# reference/original.md sections 1.3, 5.1 and 5.3
+# the original's figures: docs/original.md, "1.3 Zero pose", "5.1 The rigid-body model" and
+# "5.3 Tuning by pole placement"
 TCP_ZERO_MM = (258.96, -9.44, 245.58)
 TOOL0_ZERO_MM = (213.96, -9.444, 245.5775)
 GRAVITY_ZERO_NM = (0.0, -0.0904637, -0.0904613, -0.0018662, -0.0112560)
@@ -133,7 +135,7 @@ def test_mjcf_is_in_radians_with_torque_actuators(arms) -> None:
 
 
 def test_mass_model_switch_changes_only_inertials(desc: RobotDescription) -> None:
-    box = build_description(compose(["robot.mass_model=box"]).robot)
+    box = build_description(compose_settings(["robot.mass_model=box"]).robot)
     strip = re.compile(r"<inertial>.*?</inertial>", re.S)
     a, b = to_urdf(desc), to_urdf(box)
     assert a != b
@@ -142,7 +144,7 @@ def test_mass_model_switch_changes_only_inertials(desc: RobotDescription) -> Non
 
 
 def test_tool_none_has_no_pen(tmp_path: Path) -> None:
-    d = build_description(compose(["robot.tool=none"]).robot)
+    d = build_description(compose_settings(["robot.tool=none"]).robot)
     assert "tattoo_tcp" not in d.frame_names and "tattoo_pen_link" not in d.links
     urdf, _ = write_models(d, tmp_path)
     f = PinocchioArm(urdf, d.gravity).frames(np.zeros(5))
@@ -159,7 +161,7 @@ def test_tool_none_has_no_pen(tmp_path: Path) -> None:
 )
 def test_bad_joint_limits_are_refused(override: str, words: list[str]) -> None:
     with pytest.raises(TattotronixError) as err:
-        build_description(compose([override]).robot)
+        build_description(compose_settings([override]).robot)
     assert all(w in str(err.value) for w in words)
 
 
@@ -167,14 +169,14 @@ def test_cad_dir_missing_a_mesh_is_refused(tmp_path: Path) -> None:
     for link in ("base_link", "shoulder_link", "upper_arm_link", "forearm_link", "wrist_link"):
         (tmp_path / f"{link}.stl").write_bytes(b"")
     with pytest.raises(TattotronixError, match="tool_mount_link.stl"):
-        build_description(compose([f"robot.cad_dir={tmp_path}"]).robot)
+        build_description(compose_settings([f"robot.cad_dir={tmp_path}"]).robot)
     with pytest.raises(TattotronixError, match="not found"):
-        build_description(compose([f"robot.cad_dir={tmp_path / 'nope'}"]).robot)
+        build_description(compose_settings([f"robot.cad_dir={tmp_path / 'nope'}"]).robot)
 
 
 @pytest.mark.cad
 def test_meshes_zero_pose_figures(cad_dir: Path, tmp_path: Path) -> None:
-    d = build_description(compose([f"robot.cad_dir={cad_dir}"]).robot)
+    d = build_description(compose_settings([f"robot.cad_dir={cad_dir}"]).robot)
     urdf, mjcf = write_models(d, tmp_path)
     report = zero_pose_report(d, urdf, mjcf, poses=3)
     assert report["geometry"] == "mesh"

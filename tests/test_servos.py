@@ -1,8 +1,9 @@
 """Servo calibration: the pulse mapping, the mirrored shoulder, validation and counts.
 
-Reference/original.md section 6.3. Stated tolerances: pulse widths are compared to
-``1e-9`` us (plain arithmetic); a count's width ``c * count_us`` is checked against the
-limits with ``1e-9`` us of float slack, the same slack the library allows.
+The mapping is the original's (docs/original.md, "6.3 Pulse mapping"). Stated tolerances:
+pulse widths are compared to ``1e-9`` us (plain arithmetic); a count's width ``c *
+count_us`` is checked against the limits with ``1e-9`` us of float slack, the same slack
+the library allows.
 """
 
 from __future__ import annotations

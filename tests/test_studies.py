@@ -16,17 +16,25 @@ import yaml
 from tattotronix.config.params import compose
 from tattotronix.io.outputs import Outputs
 from tattotronix.path.polyline import resample
-from tattotronix.studies.sweeps import STUDIES, case_name, chord_error_mm, load_cases
+from tattotronix.studies.base import load_cases
+from tattotronix.studies.registry import STUDIES
+from tattotronix.studies.resample import chord_error_mm
 
 from .conftest import ROOT
 
 SMALL = ["mask.width_mm=24", "mask.min_region_mm2=0.5"]
 
 
+#: the stage script of each study (the control study's is not control.py, which would
+#: shadow python-control's ``control`` package)
+SCRIPT = {"control": "control_study", "approach": "approach", "resample": "resample",
+          "rate": "rate"}
+
+
 def _stage(study: str, data: Path, *overrides: str, multirun: bool = False
            ) -> subprocess.CompletedProcess[str]:
     art = data.parent / "small.png"
-    argv = [sys.executable, f"stages/{study}.py", *(["-m"] if multirun else []),
+    argv = [sys.executable, f"stages/{SCRIPT[study]}.py", *(["-m"] if multirun else []),
             f"paths.data={data}", f"artwork.source={art}", "draw.progress=false", *SMALL,
             *overrides]
     return subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=900)
@@ -42,18 +50,41 @@ def test_case_names_match_the_dvc_stage_outputs() -> None:
     for key, case in params["control"]["cases"].items():
         cfg = compose([f"controller.structure={case['structure']}",
                        f"controller.wn={case['wn']}"])
-        assert case_name("control", cfg) == key
+        assert STUDIES["control"].case_name(cfg) == key
     assert "${paths.data}/metrics/control/${study_artwork}/${key}.json" in dvc
     for v in params["approach_mm"]:
-        assert case_name("approach", compose([f"toolpath.approach_mm={v}"])) == f"{v}mm"
+        assert STUDIES["approach"].case_name(compose([f"toolpath.approach_mm={v}"])) == f"{v}mm"
     assert "${paths.data}/metrics/approach/${study_artwork}/${item}mm.json" in dvc
     for v in params["step_mm"]:
-        assert case_name("resample", compose([f"toolpath.step_mm={v}"])) == f"{v}mm"
+        assert STUDIES["resample"].case_name(compose([f"toolpath.step_mm={v}"])) == f"{v}mm"
     for r in params["rate_hz"]:
         for w in params["rate_wn"]:
             cfg = compose([f"controller.rate_hz={r}", f"controller.wn={w}"])
-            assert case_name("rate", cfg) == f"{r}hz-wn{w}"
+            assert STUDIES["rate"].case_name(cfg) == f"{r}hz-wn{w}"
     assert "${item.rate}hz-wn${item.wn}.json" in dvc
+
+
+def test_every_study_names_its_configured_cases_and_has_its_stages() -> None:
+    """Each registered study: the cases it reads from conf/study are named, once run, as
+    it states (its first and last; every case of every study is checked above); dvc.yaml
+    runs them in a stage of the study's name through a script that runs that study; the
+    studies stage draws its figure."""
+    params = compose()
+    stages = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]
+    assert set(SCRIPT) == set(STUDIES)
+    for name, study in STUDIES.items():
+        assert study.name == name
+        cases = list(study.cases(params.study).items())
+        assert cases, name
+        for case, overrides in {cases[0][0]: cases[0][1], cases[-1][0]: cases[-1][1]}.items():
+            assert study.case_name(compose(overrides)) == case, (name, case)
+        body = stages[name].get("do", stages[name])
+        script = f"stages/{SCRIPT[name]}.py"
+        assert body["cmd"].startswith(f"python {script} "), name
+        source = (ROOT / script).read_text()
+        assert f"from tattotronix.studies.{name} import STUDY" in source, script
+        figure = f"${{paths.data}}/figures/${{study_artwork}}/{name}.png"
+        assert figure in stages["studies"]["outs"], name
 
 
 def test_sweep_suffix_names_the_other_overrides_only_in_a_multirun() -> None:
@@ -190,8 +221,8 @@ def test_every_configured_case_has_stored_metrics() -> None:
 
 
 def test_the_nine_rate_verdicts_agree_with_the_computed_boundary() -> None:
-    """Reference section 5.8: ok at wn T <= 0.2, failing at >= 0.32, and the computed
-    boundary sorts all nine."""
+    """As in the original's rate study (docs/original.md, "5.8 The rate study"): ok at wn T
+    <= 0.2, failing at >= 0.32, and the computed boundary sorts all nine."""
     cases = _stored("rate")
     assert len(cases) == 9
     for name, c in cases.items():

@@ -33,7 +33,7 @@ def default_params(**changes: object) -> ToolpathParams:
     return dataclasses.replace(params, **changes)
 
 
-# ----------------------------------------------------------------- tracer self-test (2.10)
+# ------------------------------------ tracer self-test (docs/original.md, "2.10 Tracer self-test")
 
 _XS = np.arange(-20, 20, RES)
 _YS = _XS[::-1].copy()

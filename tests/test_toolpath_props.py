@@ -78,7 +78,7 @@ def plan(mask: InkMask, pitch: float, outlines_first: bool) -> Toolpath | None:
     labels, n = ndimage.label(mask.ink, structure=np.ones((3, 3)))
     if not (np.bincount(labels.ravel())[1:] * RES**2 >= params.min_region_mm2).any():
         return None
-    return plan_toolpath(mask, params, time_budget_s=1.0)
+    return plan_toolpath(mask, params, max_passes=20)
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -31,7 +31,7 @@ import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
-from tattotronix.config.params import compose
+from tattotronix.config.params import compose_settings
 from tattotronix.errors import TattotronixError
 from tattotronix.io.provenance import file_sha256, provenance_json
 from tattotronix.kinematics import Chain, solve_path
@@ -55,7 +55,8 @@ from tattotronix.trajectory import (
 
 ROOT = Path(__file__).resolve().parents[1]
 EMBLEM_IK = ROOT / "data" / "ik" / "emblem.npz"
-SURFACE, PLUNGE, CLEARANCE = 0.005, 0.0015, 0.008  # m (reference section 2.7)
+# m (docs/original.md, "2.6 The 3-D path" and "2.7 Panel to arm frame, timing")
+SURFACE, PLUNGE, CLEARANCE = 0.005, 0.0015, 0.008
 REL = 1e-9
 FASTEST = re.compile(r"the fastest this drawing can go is speed=(\d+\.\d\d)$")
 
@@ -71,7 +72,7 @@ def chain(desc: RobotDescription) -> Chain:
 def params() -> TrajectoryParams:
     """The config's settings with straight travel: these tests are about the time law
     along the whole path (planned travel is tested in test_travel.py)."""
-    return replace(TrajectoryParams.from_config(compose()), travel="straight")
+    return replace(TrajectoryParams.from_config(compose_settings()), travel="straight")
 
 
 def _limits(desc: RobotDescription, params: TrajectoryParams) -> JointLimits:
@@ -120,7 +121,7 @@ def line(chain: Chain) -> JointPath:
     return _solved(chain, xyz, np.ones(len(u), np.int8), uvz)
 
 
-# ----------------------------------------------------------------- npz (section 4.1)
+# ------------------------------------ npz (docs/original.md, "4.1 The trajectory file")
 
 def test_npz_holds_the_shipped_trajectory_invariants(npz: Path,
                                                      desc: RobotDescription) -> None:
@@ -431,7 +432,7 @@ def _tiny_inputs(data: Path, chain: Chain, desc: RobotDescription) -> None:
     np.savez_compressed(data / "ik" / "tiny.npz", joints=np.array(chain.joint_names),
                         q=res.q, tcp=tcp, residual=res.residual, uvz_mm=sp.uvz_mm,
                         xyz_m=sp.xyz_m, kind=sp.kind,
-                        stroke=np.zeros(len(sp.kind), np.int32))
+                        stroke=np.zeros(len(sp.kind), np.int32), provenance=np.array("{}"))
     (data / "robot").mkdir()
     (data / "robot" / f"{desc.name}.urdf").write_text(to_urdf(desc))
 

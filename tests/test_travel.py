@@ -28,7 +28,7 @@ from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
 from tattotronix.collision.model import CollisionModel
-from tattotronix.config.params import compose
+from tattotronix.config.params import compose_settings
 from tattotronix.errors import TattotronixError
 from tattotronix.kinematics import Chain, solve_path
 from tattotronix.pipeline import ik_settings, plan_drawing, travel_planner
@@ -84,7 +84,7 @@ def _dense(move: JointMove) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndar
 def _clearance_z(cfg: Any) -> float:
     """Panel top plus ``toolpath.clearance_mm``, arm frame, m."""
     p = cfg.robot.panel
-    return float(p.centre[2]) + float(p.size[2]) / 2 + float(cfg.toolpath.clearance_mm) / 1000
+    return float(p.centre[2]) + float(p.size[2]) / 2 + cfg.toolpath.clearance_m
 
 
 def _ik(chain: Chain, cfg: Any, xyz: Any, **over: Any) -> np.ndarray:
@@ -116,7 +116,7 @@ def art(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="module")
 def planned(art: Path, desc: RobotDescription) -> Trajectory:
     """The small drawing, planned travel (the default)."""
-    cfg = compose(SMALL)
+    cfg = compose_settings(SMALL)
     assert cfg.trajectory.travel == "planned"
     return plan_drawing(cfg, art, "small", desc)
 
@@ -124,7 +124,8 @@ def planned(art: Path, desc: RobotDescription) -> Trajectory:
 @pytest.fixture(scope="module")
 def straight(art: Path, desc: RobotDescription) -> Trajectory:
     """The small drawing, the original's straight travel."""
-    return plan_drawing(compose([*SMALL, "trajectory.travel=straight"]), art, "small", desc)
+    cfg = compose_settings([*SMALL, "trajectory.travel=straight"])
+    return plan_drawing(cfg, art, "small", desc)
 
 
 def _move_windows(traj: Trajectory) -> list[np.ndarray]:
@@ -262,7 +263,7 @@ def test_a_vanishing_displacement_is_no_move(d: float) -> None:
 # ----------------------------------------------------------------- a planned drawing
 
 def test_planned_moves_stay_above_the_clearance_height(planned: Trajectory) -> None:
-    cfg = compose(SMALL)
+    cfg = compose_settings(SMALL)
     clear = _clearance_z(cfg)
     assert clear == pytest.approx(0.013, abs=1e-12)
     kinds = [m.kind for m in planned.moves]
@@ -290,7 +291,7 @@ def test_planned_moves_stay_above_the_clearance_height(planned: Trajectory) -> N
 
 
 def test_the_needle_is_below_clearance_only_over_ink(planned: Trajectory) -> None:
-    clear = _clearance_z(compose(SMALL))
+    clear = _clearance_z(compose_settings(SMALL))
     ink = planned.kind != 0
     low = planned.tcp[:, 2] < clear - CLEAR_TOL
     vertical = np.flatnonzero(low & ~ink)
@@ -360,7 +361,7 @@ def test_straight_travel_marks_the_same(planned: Trajectory, straight: Trajector
 
 
 def test_planned_travel_needs_a_planner(chain: Chain, desc: RobotDescription) -> None:
-    cfg = compose()
+    cfg = compose_settings()
     params = TrajectoryParams.from_config(cfg)
     assert params.travel == "planned"
     q = np.array([_ik(chain, cfg, [0.20, 0.0, 0.013]), _ik(chain, cfg, [0.22, 0.0, 0.013])])
@@ -380,7 +381,7 @@ def test_way_home_never_lowers_the_pen(geometry: str, request: pytest.FixtureReq
     overrides = []
     if geometry == "mesh hulls":
         overrides.append(f"robot.cad_dir={request.getfixturevalue('cad_dir')}")
-    cfg = compose(overrides)
+    cfg = compose_settings(overrides)
     desc = build_description(cfg.robot)
     chain = Chain.from_description(desc)
     params = TrajectoryParams.from_config(cfg)
@@ -390,8 +391,8 @@ def test_way_home_never_lowers_the_pen(geometry: str, request: pytest.FixtureReq
     assert isinstance(model, CollisionModel) and model.geometry == geometry
     clear = _clearance_z(cfg)
     assert planner.clearance_z_m == pytest.approx(clear, abs=1e-12)
-    surface = clear - float(cfg.toolpath.clearance_mm) / 1000
-    depth = float(cfg.toolpath.plunge_mm) / 1000
+    surface = clear - cfg.toolpath.clearance_m
+    depth = cfg.toolpath.plunge_m
     home = np.asarray(params.home, dtype=np.float64)
     targets = _panel_grid(cfg, surface - depth)
     sols = [solve_path(chain, p[None, :], seed=list(cfg.ik.seed), **ik_settings(cfg.ik))
@@ -418,7 +419,7 @@ def test_way_home_never_lowers_the_pen(geometry: str, request: pytest.FixtureReq
 
 
 def test_way_home_from_clearance_needs_no_lift(chain: Chain, desc: RobotDescription) -> None:
-    cfg = compose()
+    cfg = compose_settings()
     planner = travel_planner(cfg, desc, chain, JointLimits.from_description(desc, 10.0))
     q = _ik(chain, cfg, [0.21, 0.03, _clearance_z(cfg)])
     moves = way_home(planner, q, HOME)
@@ -433,7 +434,7 @@ def test_way_home_from_clearance_needs_no_lift(chain: Chain, desc: RobotDescript
 def test_a_move_no_lift_saves_is_refused_naming_it(kind: str, chain: Chain,
                                                    desc: RobotDescription) -> None:
     """A 0.5 m margin: every pose is inside it, however high the needle goes."""
-    cfg = compose()
+    cfg = compose_settings()
     clear = _clearance_z(cfg)
     planner = TravelPlanner(chain, JointLimits.from_description(desc, 10.0),
                             CollisionModel(desc), margin_m=0.5, resolution_m=1e-4,
@@ -455,7 +456,7 @@ def _tilted_hop(chain: Chain, desc: RobotDescription, lifts_m: list[float]
                 ) -> tuple[TravelPlanner, np.ndarray, np.ndarray, float]:
     """A planner without collision model for a needle tilted 0.2 rad towards +x, and two
     clearance poses 120 mm apart in y whose joint line dips below the clearance height."""
-    cfg = compose()
+    cfg = compose_settings()
     clear = _clearance_z(cfg)
     ik = {**ik_settings(cfg.ik), "needle_axis": list(TILTED)}
     planner = TravelPlanner(chain, JointLimits.from_description(desc, 10.0), None,
@@ -508,7 +509,7 @@ def test_a_dipping_hop_without_a_reachable_lift_is_refused(chain: Chain,
 def test_with_the_needle_down_no_hop_over_the_panel_dips(chain: Chain,
                                                          desc: RobotDescription) -> None:
     """Every hop between two points of the 6 x 5 grid at clearance is one move."""
-    cfg = compose()
+    cfg = compose_settings()
     clear = _clearance_z(cfg)
     planner = TravelPlanner(chain, JointLimits.from_description(desc, 10.0), None,
                             margin_m=0.001, resolution_m=1e-4, clearance_z_m=clear,

@@ -1,7 +1,7 @@
 """Artwork input: a PNG, JPG or SVG file (or a built-in) to a grey raster on the mask grid.
 
 The raster is what the ``mask`` stage thresholds. It is ``width_mm`` wide at ``res_mm``
-per pixel, with the source's aspect ratio (reference/original.md section 2.1):
+per pixel, with the source's aspect ratio (docs/original.md, "2.1 Artwork and mask"):
 
 * Raster files (PNG, JPG) go through Pillow. Transparency is composited onto opaque
   white, then the image is converted to 8-bit grey. The grid is ``out_w =
@@ -29,7 +29,6 @@ import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import cv2
 import numpy as np
@@ -37,6 +36,7 @@ from numpy.typing import NDArray
 from PIL import Image, ImageOps
 
 from tattotronix.art.mask import NoInkError
+from tattotronix.config.schema import ArtworkConfig
 from tattotronix.errors import TattotronixError
 
 __all__ = [
@@ -173,17 +173,17 @@ def resolve_source(source: str | Path | None) -> Path:
     )
 
 
-def artwork_name(cfg_artwork: Any) -> str:
+def artwork_name(cfg_artwork: ArtworkConfig) -> str:
     """The name of an artwork's outputs: ``name``, else the source's stem, else ``emblem``.
 
     Args:
-        cfg_artwork: the ``artwork`` config group (anything with ``source`` and ``name``).
+        cfg_artwork: the ``artwork`` settings.
 
     Raises:
         TattotronixError: the name would not be a plain file name.
     """
-    name = getattr(cfg_artwork, "name", None)
-    source = getattr(cfg_artwork, "source", None)
+    name = cfg_artwork.name
+    source = cfg_artwork.source
     if name is None or str(name).strip() == "":
         name = DEFAULT_ARTWORK if source is None or str(source).strip() == "" else Path(
             str(source)

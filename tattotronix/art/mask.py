@@ -1,4 +1,5 @@
-"""Grey raster to ink mask (reference/original.md sections 2.1 and 2.2), through OpenCV.
+"""Grey raster to ink mask (docs/original.md, "2.1 Artwork and mask" and "2.2 Regions";
+docs/toolpath.md, "Artwork to ink mask"), through OpenCV.
 
 Two methods (:class:`~tattotronix.config.schema.MaskMethod`):
 
@@ -23,8 +24,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.art.grid import InkMask
-from tattotronix.config.schema import MaskMethod
+from tattotronix.config.schema import MaskConfig, MaskMethod
 from tattotronix.errors import TattotronixError
+from tattotronix.io.jsontypes import JsonDict
 
 __all__ = [
     "MaskMethodError",
@@ -40,6 +42,7 @@ __all__ = [
 ]
 
 log = logging.getLogger(__name__)
+_DEFAULTS = MaskConfig()  # make_mask's keyword defaults are the schema's
 
 ALLOWED_METHODS: tuple[str, ...] = tuple(m.value for m in MaskMethod)
 
@@ -96,7 +99,7 @@ class MaskStats:
     threshold: float
     inverted: bool
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> JsonDict:
         """Plain JSON-ready dict."""
         return asdict(self)
 
@@ -136,13 +139,13 @@ def mask_method(method: str | MaskMethod) -> MaskMethod:
         ) from None
 
 
-def _as_uint8(grey: NDArray[np.floating[Any]] | NDArray[np.uint8]) -> NDArray[np.uint8]:
+def _as_uint8(grey: NDArray[np.generic]) -> NDArray[np.uint8]:
     if grey.dtype == np.uint8:
         return np.ascontiguousarray(grey)
     return np.clip(np.rint(grey), 0, 255).astype(np.uint8)
 
 
-def otsu_ink(grey: NDArray[Any]) -> tuple[NDArray[np.bool_], float, bool]:
+def otsu_ink(grey: NDArray[np.generic]) -> tuple[NDArray[np.bool_], float, bool]:
     """Otsu's threshold with the minority polarity rule.
 
     Args:
@@ -161,7 +164,7 @@ def otsu_ink(grey: NDArray[Any]) -> tuple[NDArray[np.bool_], float, bool]:
 
 
 def edge_ink(
-    grey: NDArray[Any], sigma_px: float, k: float
+    grey: NDArray[np.generic], sigma_px: float, k: float
 ) -> tuple[NDArray[np.bool_], float]:
     """Edges of a photograph as ink.
 
@@ -205,12 +208,12 @@ def count_holes(ink: NDArray[np.bool_]) -> int:
 
 
 def make_mask(
-    grey: NDArray[Any],
+    grey: NDArray[np.generic],
     res_mm: float,
-    method: str | MaskMethod = MaskMethod.threshold,
-    min_region_mm2: float = 4.0,
-    edge_sigma_px: float = 2.0,
-    edge_k: float = 1.0,
+    method: str | MaskMethod = _DEFAULTS.method,
+    min_region_mm2: float = _DEFAULTS.min_region_mm2,
+    edge_sigma_px: float = _DEFAULTS.edge_sigma_px,
+    edge_k: float = _DEFAULTS.edge_k,
 ) -> tuple[InkMask, MaskStats]:
     """Ink mask of a grey raster on the mask grid.
 

@@ -16,23 +16,32 @@ needle is the one shape allowed into the panel).
 
 from __future__ import annotations
 
-import json
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.collision.model import CollisionModel
 from tattotronix.errors import TattotronixError
+from tattotronix.io.jsontypes import JsonDict
 
-__all__ = ["CollisionRefused", "TrajectoryClearance", "check_trajectory", "require_checked"]
+__all__ = ["CollisionEvent", "CollisionRefused", "TrajectoryClearance", "check_trajectory"]
 
 Array = NDArray[np.float64]
 _MAX_ROUNDS = 40  # bisection rounds (a bound halves each round)
 _DEPTH_TOL_M = 1e-5  # the tip may end up to 10 um deeper than the plunge (IK lands within 1 um)
+
+
+class CollisionEvent(TypedDict):
+    """The first moment a pair comes under the margin: the pair (``a|b``), the time (s),
+    the pose (rad) and the clearance there (mm)."""
+
+    pair: str
+    time_s: float
+    pose: list[float]
+    clearance_mm: float
 
 
 @dataclass(frozen=True)
@@ -63,7 +72,7 @@ class TrajectoryClearance:
     lower_bound_m: Array
     at_time_s: Array
     at_pose: Array
-    events: list[dict[str, Any]]
+    events: list[CollisionEvent]
     margin_m: float
     resolution_m: float
     needle_depth_max_m: float
@@ -88,7 +97,7 @@ class TrajectoryClearance:
         """Every pair above the margin, and the needle no deeper than the plunge."""
         return not self.events and self.needle_depth_max_m <= self.plunge_m + _DEPTH_TOL_M
 
-    def metrics(self) -> dict[str, Any]:
+    def metrics(self) -> JsonDict:
         """The collision stage's metrics (JSON-ready)."""
         w = self.worst
         return {
@@ -109,7 +118,6 @@ class TrajectoryClearance:
                 n: round(float(c) * 1000, 4) for n, c in
                 sorted(zip(self.pair_names, self.min_clearance_m, strict=True),
                        key=lambda kv: kv[1])},
-            "timings_s": dict(self.timings_s),
         }
 
     def message(self) -> str:
@@ -218,9 +226,9 @@ def check_trajectory(model: CollisionModel, t: Array, q: Array, *, margin_m: flo
     tip = model.frames(qa)[0] if tcp is None else np.asarray(tcp, dtype=np.float64)
     depth = model.needle_depth_m(tip)
     depth_max = float(depth.max()) if np.isfinite(depth).any() else 0.0
-    events = [{"pair": model.pair_names[p], "time_s": float(first_bad[p]),
-               "pose": [float(v) for v in first_q[p]],
-               "clearance_mm": float(best[p] * 1000)}
+    events = [CollisionEvent(pair=model.pair_names[p], time_s=float(first_bad[p]),
+                             pose=[float(v) for v in first_q[p]],
+                             clearance_mm=float(best[p] * 1000))
               for p in np.argsort(first_bad) if np.isfinite(first_bad[p])]
     return TrajectoryClearance(
         pair_names=list(model.pair_names), min_clearance_m=best, lower_bound_m=floor,
@@ -230,28 +238,3 @@ def check_trajectory(model: CollisionModel, t: Array, q: Array, *, margin_m: flo
         bisected=bisected, series_m=clear,
         timings_s={"samples": t1 - t0, "swept": t2 - t1, "total": time.perf_counter() - t0})
 
-
-def require_checked(metrics_file: str | Path, trajectory_file: str | Path) -> dict[str, Any]:
-    """The collision stage's verdict on a trajectory file, or a refusal.
-
-    Raises:
-        TattotronixError: no verdict, a verdict on another trajectory (its SHA-256
-            differs), or a trajectory that was not clean.
-    """
-    from tattotronix.io.provenance import file_sha256
-
-    mf = Path(metrics_file)
-    if not mf.is_file():
-        raise TattotronixError(f"{trajectory_file} has no collision check ({mf} is missing): "
-                               "run the 'collision' stage first")
-    try:
-        m = json.loads(mf.read_text())
-    except (OSError, ValueError) as exc:
-        raise TattotronixError(f"{mf} is not a collision verdict ({exc}): re-run the "
-                               "'collision' stage") from None
-    if not isinstance(m, dict) or m.get("trajectory_sha256") != file_sha256(trajectory_file):
-        raise TattotronixError(f"{mf} checked another version of {trajectory_file}: re-run "
-                               "the 'collision' stage")
-    if m.get("collisions") != 0 or m.get("below_margin") != 0:
-        raise TattotronixError(f"{trajectory_file} is not collision-free ({mf})")
-    return dict(m)

@@ -23,16 +23,19 @@ Units: m and rad inside; reports say mm where their keys do.
 from __future__ import annotations
 
 import time
+from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.collision.pairs import BodyPair, body_pairs
 from tattotronix.collision.shapes import kdop_vertices, load_kdops, mesh_vertices
 from tattotronix.errors import TattotronixError
+from tattotronix.io.jsontypes import JsonDict
 from tattotronix.robot.description import PEN_LINK, RobotDescription
+from tattotronix.robot.loaders import pinocchio_model
 from tattotronix.robot.urdf import to_urdf
 
 __all__ = ["NEEDLE", "CollisionModel", "PoseReport", "parse_pose"]
@@ -51,7 +54,7 @@ def _convex(points: Array) -> Any:
     return coal.Convex.convexHull(vec, False, "Qt")
 
 
-def parse_pose(pose: Any, desc: RobotDescription) -> Array:
+def parse_pose(pose: Iterable[float], desc: RobotDescription) -> Array:
     """A pose from the command line (``pose=[q1,...,q5]``, rad).
 
     Raises:
@@ -92,9 +95,10 @@ class PoseReport:
     needle_depth_m: float
     within_limits: bool
 
-    def to_json(self, margin_m: float, geometry: str) -> dict[str, Any]:
-        """The design section 8 object: ``collisions``, ``min_clearance_mm``,
-        ``worst_pair``, and the rest of the report."""
+    def to_json(self, margin_m: float, geometry: str) -> JsonDict:
+        """The object ``collision.py pose=[...]`` prints, an interface other tools rely on
+        (README, "Collision safety and planned travel"): ``collisions``,
+        ``min_clearance_mm``, ``worst_pair``, and the rest of the report."""
         return {
             "collisions": self.collisions,
             "min_clearance_mm": round(self.min_clearance_m * 1000, 4),
@@ -127,7 +131,8 @@ class CollisionModel:
         t0 = time.perf_counter()
         self._pin = pin
         self.desc = desc
-        self.model = pin.buildModelFromXML(to_urdf(desc))
+        # the shared, read-only kinematic model; the geometry below is this model's own
+        self.model = pinocchio_model(to_urdf(desc), desc.gravity)
         self.data = self.model.createData()
         self.geometry = "mesh hulls" if desc.cad_dir else "k-DOP"
         table = load_kdops() if kdops is None else kdops
@@ -224,7 +229,7 @@ class CollisionModel:
         return reach
 
     # ----------------------------------------------------------------------- queries
-    def clearance(self, q: Any) -> Array:
+    def clearance(self, q: ArrayLike) -> Array:
         """Clearance of every checked pair at each pose, (N, P) m (or (P,) for one pose).
 
         Raises:
@@ -258,7 +263,7 @@ class CollisionModel:
         b = np.array([idx[p.b] for p in self.checked])
         return body[:, a] + body[:, b]
 
-    def frames(self, q: Array) -> tuple[Array, Array, Array]:
+    def frames(self, q: ArrayLike) -> tuple[Array, Array, Array]:
         """(tcp (N, 3), tool0 origin (N, 3), tool axis (N, 3)) at each pose, m."""
         pin = self._pin
         qa = np.atleast_2d(np.asarray(q, dtype=np.float64))
@@ -270,7 +275,7 @@ class CollisionModel:
             tool0[i], axis[i] = t0.translation, t0.rotation[:, 2]
         return tcp, tool0, axis
 
-    def pen_lowest_z(self, q: Any) -> Array:
+    def pen_lowest_z(self, q: ArrayLike) -> Array:
         """Height of the lowest point of the pen (barrel and needle) at each pose, m."""
         _, radius, barrel = self._pen_dims()
         tcp, tool0, axis = self.frames(q)
@@ -287,7 +292,7 @@ class CollisionModel:
         over = np.all(np.abs(tip[:, :2] - c[:2]) <= s[:2] / 2, axis=1)
         return np.where(over, top - tip[:, 2], -np.inf)
 
-    def pose_report(self, q: Any) -> PoseReport:
+    def pose_report(self, q: ArrayLike) -> PoseReport:
         """The clearance report of one pose."""
         qa = np.asarray(q, dtype=np.float64).reshape(-1)
         c = self.clearance(qa)

@@ -11,7 +11,7 @@ SRDF's disabled pair) only when
   every angle, so their meshes touch by design and can never separate.
 
 Every other pair is checked. On the TATTOTRONIX tree this gives the original's 6 allowed
-pairs of the 21 link pairs (reference section 10, ``make_moveit_config.py``).
+pairs of the 21 link pairs (docs/original.md, "Allowed collision pairs").
 """
 
 from __future__ import annotations

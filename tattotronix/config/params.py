@@ -1,8 +1,8 @@
 """Compose ``conf/`` into ``params.yaml``, and refuse to run on a stale one.
 
-DVC composes ``conf/`` only in ``dvc exp run``, never in ``dvc repro`` (anchors section 4,
-pitfall 1). So ``params.yaml`` can silently fall behind an edit under ``conf/``. We close
-that gap from both sides:
+DVC composes ``conf/`` only in ``dvc exp run``, never in ``dvc repro`` (by design in DVC;
+README, "Configuration"). So ``params.yaml`` can silently fall behind an edit under
+``conf/``. We close that gap from both sides:
 
 * the ``config`` stage depends on ``conf/`` and runs first; under ``dvc repro`` it
   recomposes ``conf/`` and stops, naming the keys that differ, when ``params.yaml`` is
@@ -20,21 +20,23 @@ import os
 import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
+from tattotronix.config.schema import Config, Plain
 from tattotronix.errors import ConfigError
 
 __all__ = [
     "PROJECT_ROOT",
     "StaleParamsError",
     "compose",
+    "compose_settings",
     "diff",
     "load_params",
     "main",
     "params_text",
     "stale_message",
+    "to_settings",
 ]
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
@@ -84,13 +86,37 @@ def compose(
     return cfg
 
 
+def to_settings(cfg: DictConfig) -> Config:
+    """The typed settings of a composed config: a frozen :class:`~.schema.Config`.
+
+    The stage runner calls this once per run; the library takes the result (or a
+    section of it), never the ``DictConfig``.
+
+    Raises:
+        ConfigError: a key is unknown, missing, or has a value of the wrong type.
+    """
+    try:
+        typed = cfg if OmegaConf.get_type(cfg) is Config else OmegaConf.merge(
+            OmegaConf.structured(Config), OmegaConf.to_container(cfg, resolve=True))
+        obj = OmegaConf.to_object(typed)
+    except Exception as exc:
+        raise ConfigError(f"bad configuration: {_root_cause(exc)}") from None
+    assert isinstance(obj, Config)
+    return obj
+
+
+def compose_settings(overrides: Sequence[str] = (), conf_dir: Path = CONF_DIR) -> Config:
+    """:func:`compose` then :func:`to_settings`: the settings of ``conf/`` plus overrides."""
+    return to_settings(compose(overrides, conf_dir=conf_dir))
+
+
 def params_text(cfg: DictConfig) -> str:
     """The YAML DVC writes for a composed config (resolved, ``hydra`` node excluded)."""
     plain = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True, enum_to_str=True))
     return OmegaConf.to_yaml(plain)
 
 
-def _flatten(node: Any, prefix: str = "") -> Iterator[tuple[str, Any]]:
+def _flatten(node: Plain, prefix: str = "") -> Iterator[tuple[str, Plain]]:
     if isinstance(node, dict):
         for k, v in node.items():
             yield from _flatten(v, f"{prefix}.{k}" if prefix else str(k))
@@ -101,22 +127,21 @@ def _flatten(node: Any, prefix: str = "") -> Iterator[tuple[str, Any]]:
         yield prefix, node
 
 
-def diff(a: Any, b: Any) -> list[tuple[str, Any, Any]]:
+def diff(a: Plain, b: Plain) -> list[tuple[str, Plain, Plain]]:
     """Keys whose values differ between two plain configs: ``(key, a_value, b_value)``."""
     fa, fb = dict(_flatten(a)), dict(_flatten(b))
-    missing = object()
     out = []
     for key in sorted(set(fa) | set(fb)):
-        va, vb = fa.get(key, missing), fb.get(key, missing)
-        if va != vb:
-            out.append(
-                (key, None if va is missing else va, None if vb is missing else vb)
-            )
+        va, vb = fa.get(key), fb.get(key)  # a missing key reads None
+        if key not in fa or key not in fb or va != vb:
+            out.append((key, va, vb))
     return out
 
 
-def _plain(cfg: DictConfig) -> Any:
-    return OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+def _plain(cfg: DictConfig) -> Plain:
+    plain = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+    assert isinstance(plain, dict)
+    return {str(k): v for k, v in plain.items()}
 
 
 def stale_message(root: Path = PROJECT_ROOT) -> str | None:

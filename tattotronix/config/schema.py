@@ -6,14 +6,28 @@ value stops composition with a message that names the key (and, for enums, the a
 values). :func:`register` is called from the Hydra plugin in ``hydra_plugins/`` so that any
 Hydra process (a stage, a test, or DVC's own composition in ``dvc exp run``) sees them.
 
-Units: SI inside (m, kg, rad, s); millimetres only where the name says ``_mm``.
+The same classes are the typed settings the library takes. The stage runner
+(:mod:`tattotronix.stage`) turns the composed config into a :class:`Config` once
+(:func:`tattotronix.config.params.to_settings`); library functions take the section they
+need (``IkConfig``, ``RobotConfig``, ...), never a ``DictConfig``. Every class is declared
+with :func:`settings`: a dataclass that is frozen once built (assigning a field raises
+``FrozenInstanceError``), and that type checkers treat as ``@dataclass(frozen=True)``. It
+is not a frozen dataclass to OmegaConf, which makes such a node read-only and then cannot
+compose the YAML into it. Defaults live here only: library code reads them from these
+classes, never copies them.
+
+Units: SI inside (m, kg, rad, s); millimetres only where the name says ``_mm``. A section
+converts its ``_mm`` keys once, in properties named in SI (``CollisionConfig.margin_m``,
+``ToolpathConfig.clearance_m``, ...); the library uses those.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import dataclasses
+from collections.abc import Callable
+from dataclasses import FrozenInstanceError, dataclass, field
 from enum import Enum
-from typing import Any
+from typing import Any, TypeAlias, TypeVar, dataclass_transform
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
@@ -43,6 +57,7 @@ __all__ = [
     "PanelConfig",
     "PathsConfig",
     "PenConfig",
+    "Plain",
     "PlantConfig",
     "RobotConfig",
     "ServoConfig",
@@ -53,7 +68,69 @@ __all__ = [
     "ToolpathConfig",
     "TrajectoryConfig",
     "register",
+    "settings",
+    "to_dict",
 ]
+
+_T = TypeVar("_T")
+#: the plain value of a setting: what ``to_dict`` and ``params.yaml`` hold
+Plain: TypeAlias = None | bool | int | float | str | list["Plain"] | dict[str, "Plain"]
+
+
+def _frozen_setattr(self: object, name: str, value: object) -> None:
+    if self.__dict__.get("_built"):
+        raise FrozenInstanceError(f"cannot assign to field {name!r}: settings are frozen")
+    object.__setattr__(self, name, value)
+
+
+def _frozen_delattr(self: object, name: str) -> None:
+    raise FrozenInstanceError(f"cannot delete field {name!r}: settings are frozen")
+
+
+def _built(self: object) -> None:
+    object.__setattr__(self, "_built", True)
+
+
+@dataclass_transform(frozen_default=True, field_specifiers=(field,))
+def settings(cls: type[_T]) -> type[_T]:
+    """Declare a schema class: a dataclass whose instances are frozen once built.
+
+    OmegaConf builds and merges the class's fields (it is not a frozen dataclass to
+    OmegaConf); an instance refuses any assignment after ``__init__`` (at run time) and is
+    ``@dataclass(frozen=True)`` to type checkers (``dataclass_transform``).
+    """
+    if "__post_init__" in cls.__dict__:
+        raise TypeError(f"{cls.__name__}: a settings class has no __post_init__ of its own")
+    hooks: dict[str, Callable[..., None]] = {
+        "__setattr__": _frozen_setattr, "__delattr__": _frozen_delattr,
+        "__post_init__": _built}
+    for name, hook in hooks.items():
+        setattr(cls, name, hook)
+    return dataclass(unsafe_hash=True)(cls)
+
+
+def to_dict(obj: object) -> dict[str, Plain]:
+    """The plain dict of a settings object: what ``OmegaConf.to_container(cfg,
+    resolve=True, enum_to_str=True)`` gives for the same config (field order, enum names),
+    so provenance written from either is the same."""
+    if not dataclasses.is_dataclass(obj) or isinstance(obj, type):
+        raise TypeError(f"to_dict takes a settings object, not {type(obj).__name__}")
+    plain = _plain(obj)
+    assert isinstance(plain, dict)
+    return plain
+
+
+def _plain(value: object) -> Plain:
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, Enum):
+        return value.name
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    assert value is None or isinstance(value, bool | int | float | str), value
+    return value
 
 
 class MassModel(Enum):
@@ -77,7 +154,7 @@ class MaskMethod(Enum):
     edges = "edges"
 
 
-@dataclass
+@settings
 class JointConfig:
     """One revolute joint: fixed origin (parent frame, m / rad), then a rotation about ``axis``."""
 
@@ -93,7 +170,7 @@ class JointConfig:
     velocity: float = 1.5  # rad/s
 
 
-@dataclass
+@settings
 class FrameConfig:
     """A frame rigidly attached to ``parent`` (no body of its own)."""
 
@@ -103,7 +180,7 @@ class FrameConfig:
     rpy: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
 
 
-@dataclass
+@settings
 class InertialConfig:
     """Mass (kg), CoM in the link frame (m) and inertia about the CoM in link axes (kg m^2).
 
@@ -115,7 +192,7 @@ class InertialConfig:
     inertia: list[float] = MISSING
 
 
-@dataclass
+@settings
 class BoxInertial:
     """The ``box`` mass model for one link: a solid box of the link's bounding box.
 
@@ -127,7 +204,7 @@ class BoxInertial:
     size: list[float] = MISSING
 
 
-@dataclass
+@settings
 class PenConfig:
     """The placeholder tattoo pen on ``tool0``: a cylinder along tool0 +z (m, kg)."""
 
@@ -137,22 +214,27 @@ class PenConfig:
     barrel_length: float = 0.037  # visual barrel; the rest is the tip cone
 
 
-@dataclass
+@settings
 class PanelConfig:
     """The work panel in the arm frame (m). Visual only: the needle may enter it."""
 
     centre: list[float] = field(default_factory=lambda: [0.21, 0.0, 0.0025])
     size: list[float] = field(default_factory=lambda: [0.20, 0.14, 0.005])
 
+    @property
+    def size_mm(self) -> tuple[float, float]:
+        """Width and height of the panel, mm."""
+        return float(self.size[0]) * 1e3, float(self.size[1]) * 1e3
 
-@dataclass
+
+@settings
 class BenchConfig:
     """The bench under the arm (m); its top is the arm frame's z = 0."""
 
     size: list[float] = field(default_factory=lambda: [0.70, 0.50, 0.75])
 
 
-@dataclass
+@settings
 class ServoConfig:
     """A catalogue hobby servo: mass (kg), body box (m), dead band (us)."""
 
@@ -161,7 +243,7 @@ class ServoConfig:
     deadband_us: float = MISSING
 
 
-@dataclass
+@settings
 class ServoMountConfig:
     """Where a servo sits: on ``link``, centred on joint ``at`` (or ``tool`` axis)."""
 
@@ -171,7 +253,7 @@ class ServoMountConfig:
     count: int = 1
 
 
-@dataclass
+@settings
 class RobotConfig:
     """The one robot description: URDF, MJCF and every loader are generated from it."""
 
@@ -197,7 +279,7 @@ class RobotConfig:
     servo_mounts: list[ServoMountConfig] = MISSING
 
 
-@dataclass
+@settings
 class ArtworkConfig:
     """Which artwork to draw. ``source`` null means the built-in emblem."""
 
@@ -206,7 +288,7 @@ class ArtworkConfig:
     max_pixels: int = 40_000_000  # refuse larger images (decompression bombs)
 
 
-@dataclass
+@settings
 class MaskConfig:
     """Artwork to ink mask."""
 
@@ -218,7 +300,7 @@ class MaskConfig:
     edge_k: float = 1.0
 
 
-@dataclass
+@settings
 class ToolpathConfig:
     """Mask to ordered needle path (mm in the panel plane)."""
 
@@ -234,12 +316,38 @@ class ToolpathConfig:
     outlines_first: bool = True
     panel_origin: list[float] = field(default_factory=lambda: [0.21, 0.0, 0.005])  # m
 
+    @property
+    def pitch_m(self) -> float:
+        """The hatch spacing, m."""
+        return float(self.pitch_mm) / 1000
 
-@dataclass
+    @property
+    def clearance_m(self) -> float:
+        """The needle's travel height above the panel surface, m."""
+        return float(self.clearance_mm) / 1000
+
+    @property
+    def plunge_m(self) -> float:
+        """The marking depth below the surface, m."""
+        return float(self.plunge_mm) / 1000
+
+    @property
+    def feed_mark_m_s(self) -> float:
+        """The marking (and approach) feed, m/s."""
+        return float(self.feed_mark_mm_s) / 1000
+
+    @property
+    def feed_travel_m_s(self) -> float:
+        """The original's travel feed, m/s."""
+        return float(self.feed_travel_mm_s) / 1000
+
+
+@settings
 class IkConfig:
-    """Whole-path IK: damped least squares on the 5x5 task Jacobian (reference section 3)."""
+    """Whole-path IK: damped least squares on the 5x5 task Jacobian (docs/kinematics.md,
+    "Inverse kinematics"; the original's: docs/original.md, "3 Inverse kinematics")."""
 
-    damping: float = 1e-3  # lambda, added to J J^T as is
+    dls_lambda: float = 1e-3  # the damped-least-squares lambda, added to J J^T as is
     max_iter: int = 200
     tol: float = 1e-6  # |e|, mixed m / unitless
     seed: list[float] = field(default_factory=lambda: [0.0, 0.6, -0.9, 0.0, -1.2])  # rad
@@ -249,7 +357,7 @@ class IkConfig:
     verify_axis_tol_rad: float = 2e-6
 
 
-@dataclass
+@settings
 class TrajectoryConfig:
     """Time law along the IK path: feeds, joint limits, ramps.
 
@@ -266,17 +374,43 @@ class TrajectoryConfig:
     from_home: bool = True  # planned travel: start at home and return home
     lifts_mm: list[float] = field(default_factory=lambda: [10.0, 20.0, 40.0, 80.0])
 
+    @property
+    def travel_feed_m_s(self) -> float:
+        """The cap on the tip speed of travel moves, m/s."""
+        return float(self.travel_feed_mm_s) / 1000
 
-@dataclass
+    @property
+    def max_step_m(self) -> float:
+        """The longest chord kept as is (longer ones get points on the tip line), m."""
+        return float(self.max_step_mm) / 1000
+
+    @property
+    def lifts_m(self) -> list[float]:
+        """The lift heights planned travel tries, m."""
+        return [float(h) / 1000 for h in self.lifts_mm]
+
+
+@settings
 class CollisionConfig:
     """Collision checking (``stages/collision.py``) and the planned travel's margin."""
 
     margin_mm: float = 1.0  # least clearance a trajectory and a planned move must keep
     resolution_mm: float = 0.1  # bisect the motion between samples down to this bound
 
+    @property
+    def margin_m(self) -> float:
+        """The least clearance to keep, m."""
+        return float(self.margin_mm) / 1000
+
+    @property
+    def resolution_m(self) -> float:
+        """The bisection bound of the motion between samples, m."""
+        return float(self.resolution_mm) / 1000
+
 
 class Structure(Enum):
-    """Controller structure (reference section 5.2).
+    """Controller structure (docs/control.md, "The controller"; docs/original.md, "5.2
+    Controller structure").
 
     ``pid``: no feedforward; ``pid_g``: + gravity G(q) at the measured q; ``pid_g_v``: +
     velocity feedforward (the derivative acts on the error, qd_r - qd);
@@ -298,9 +432,10 @@ class Backend(Enum):
     arm = "arm"
 
 
-@dataclass
+@settings
 class ControllerConfig:
-    """The joint controller shared by every plant (reference sections 5.2 and 5.3).
+    """The joint controller shared by every plant (docs/control.md, "The controller";
+    docs/original.md, "5.2 Controller structure" and "5.3 Tuning by pole placement").
 
     PID by pole placement on the effective inertia J_eff at ``tune_q`` (all three poles
     at -wn): Kp = 3 J wn^2, Kd = 3 J wn, Ki = J wn^3.
@@ -313,7 +448,7 @@ class ControllerConfig:
     tune_q: list[float] | None = None  # rad; null: the reference pose mid-way through the run
 
 
-@dataclass
+@settings
 class PlantConfig:
     """The simulated arm, whichever backend runs it."""
 
@@ -324,9 +459,10 @@ class PlantConfig:
     abort_error_rad: float = 1.0  # a joint this far from its reference: the run diverged
 
 
-@dataclass
+@settings
 class DrawConfig:
-    """Error bookkeeping and the ink image of a simulated drawing (reference section 5.5)."""
+    """Error bookkeeping and the ink image of a simulated drawing (docs/original.md, "5.5
+    Tracking error"; docs/control.md, "Ink against the plan")."""
 
     sample_s: float = 0.02  # tracking error sampled every 20 ms
     settle_periods: float = 4.0  # "settled" excludes settle_periods / wn after each entry
@@ -334,8 +470,13 @@ class DrawConfig:
     ink_res_mm: float = 0.05  # ink raster pixel
     progress: bool = True  # a progress bar with simulated time and real-time factor
 
+    @property
+    def needle_um(self) -> float:
+        """The ink line width, um."""
+        return float(self.needle_mm) * 1e3
 
-@dataclass
+
+@settings
 class HardwareConfig:
     """The real arm: the PCA9685 board, the servo calibration, and how a drawing is sent.
 
@@ -345,7 +486,8 @@ class HardwareConfig:
     file of the same shape.
     """
 
-    servos: Any = MISSING
+    # Any: OmegaConf 2.3 types no nested mapping of mixed values (it has no Union types)
+    servos: dict[str, Any] = MISSING  # Any: OmegaConf (above); hardware/servos.py checks it
     calibration_file: str | None = None
     ramp_rad_s: float = 0.25  # the slow move to the start pose (and lifts), fastest joint
     state_file: str = "arm/state.json"  # under paths.data: last commanded pose, resume point
@@ -353,9 +495,10 @@ class HardwareConfig:
     fail_after_writes: int | None = None  # dry-run fault injection: the bus fails after N
 
 
-@dataclass
+@settings
 class KinematicsStudyConfig:
-    """The kinematics study (reference section 3.4). Placements pair widths[i] with offsets[i]."""
+    """The kinematics study (docs/kinematics.md; docs/original.md, "3.4 Conditioning,
+    reachability, placement"). Placements pair widths[i] with offsets[i]."""
 
     reach_nx: int = 33
     reach_ny: int = 23
@@ -367,7 +510,7 @@ class KinematicsStudyConfig:
     workspace_seed: int = 0
 
 
-@dataclass
+@settings
 class ControlCase:
     """One run of the control study: a controller structure at a bandwidth."""
 
@@ -375,9 +518,11 @@ class ControlCase:
     wn: float = MISSING
 
 
-@dataclass
+@settings
 class ControlStudyConfig:
-    """The control study (reference section 5.6): structures at wn 20, and a wn sweep.
+    """The control study (docs/control.md, "The control study: whole drawing and busiest
+    window"; docs/original.md, "5.6 Published control results"): structures at wn 20, and
+    a wn sweep.
 
     ``cases`` maps a run's name (``<structure>-wn<wn>``) to its controller; each runs over
     the whole drawing and over its busiest ``window_s`` window.
@@ -386,7 +531,7 @@ class ControlStudyConfig:
     cases: dict[str, ControlCase] = MISSING
 
 
-@dataclass
+@settings
 class ActuatorOption:
     """A way to drive the servos: how the pulse is stepped, and which joints are bus servos.
 
@@ -398,9 +543,10 @@ class ActuatorOption:
     bus_joints: list[str] = field(default_factory=list)
 
 
-@dataclass
+@settings
 class ActuatorStudyConfig:
-    """The actuator study (reference section 6.6): what hobby servos allow at the needle."""
+    """The actuator study (docs/actuators.md; docs/original.md, "6.6 The actuator study"):
+    what hobby servos allow at the needle."""
 
     every: int = 5  # every 5th marking point is a pose of the study
     us_per_deg: float = 11.111  # the declared pulse-to-angle scale (2000 us over 180 deg)
@@ -411,7 +557,7 @@ class ActuatorStudyConfig:
     options: list[ActuatorOption] = MISSING
 
 
-@dataclass
+@settings
 class StudyConfig:
     """Settings of the study stages (each study is a sweep: see dvc.yaml and the README).
 
@@ -430,14 +576,14 @@ class StudyConfig:
     actuator: ActuatorStudyConfig = field(default_factory=ActuatorStudyConfig)
 
 
-@dataclass
+@settings
 class PathsConfig:
     """Where outputs go. Relative paths are taken from the project root."""
 
     data: str = "data"
 
 
-@dataclass
+@settings
 class Config:
     """The composed configuration (``params.yaml``)."""
 
@@ -456,7 +602,8 @@ class Config:
     speed: float = 1.0  # rescales the motion: 2 draws twice as fast (marking at 2x feed)
     backend: Backend = Backend.mujoco  # draw.py: the plant
     art: str | None = None  # draw.py: a stored (or built-in) drawing by name
-    window: Any = None  # draw.py: null (whole drawing), [start_s, length_s] or "busiest"
+    # draw.py: null (whole drawing), [start_s, length_s] or "busiest"
+    window: Any = None  # Any: OmegaConf 2.3 has no Union (of a list and a str)
     viewer: bool = False  # draw.py: watch the run where a display exists
     hardware: HardwareConfig = field(default_factory=HardwareConfig)
     dry_run: bool = False  # backend=arm: a recording bus instead of the I2C device
@@ -465,7 +612,7 @@ class Config:
     pose: list[float] | None = None  # collision.py: report this one pose (rad) as JSON
 
 
-SCHEMAS: dict[str, Any] = {
+SCHEMAS: dict[str, type] = {
     "robot": RobotConfig,
     "artwork": ArtworkConfig,
     "mask": MaskConfig,

@@ -1,4 +1,5 @@
-"""Closed-form and sampled-loop facts of the joint controller (reference sections 5.3-5.4).
+"""Closed-form and sampled-loop facts of the joint controller (docs/control.md, "Loop facts";
+the original's: docs/original.md, "5.3 Tuning by pole placement" and "5.4 Loop facts").
 
 Each joint is a double integrator ``J qdd = tau`` tuned by pole placement with all three
 poles at ``-wn``::
@@ -323,7 +324,8 @@ def step_overshoot_pct(derivative_on_error: bool) -> float:
 
 def loop_report(mass_matrix: ArrayLike, j_eff: ArrayLike, wn: float, rate_hz: float,
                 substeps: int | None = None) -> dict[str, Any]:
-    """The loop facts of reference section 5.4 at one pose, JSON-ready (plain floats).
+    """The loop facts (docs/original.md, "5.4 Loop facts") at one pose, JSON-ready (plain
+    floats).
 
     Args:
         mass_matrix: (n, n) M(q) at the pose (kg m^2).

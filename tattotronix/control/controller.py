@@ -1,4 +1,6 @@
-"""The joint controller, one implementation for every plant (reference sections 5.2-5.3).
+"""The joint controller, one implementation for every plant (docs/control.md, "The
+controller"; the original's: docs/original.md, "5.2 Controller structure" and "5.3 Tuning
+by pole placement").
 
 Independent PID per joint on the joint torque, tuned by pole placement on the effective
 inertia (all three poles at -wn)::
@@ -26,7 +28,6 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import Enum
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -36,6 +37,7 @@ from tattotronix.control.analysis import pole_placement_gains
 from tattotronix.control.dynamics import Dynamics
 from tattotronix.control.reference import Reference
 from tattotronix.errors import TattotronixError
+from tattotronix.io.jsontypes import JsonDict
 
 __all__ = ["Controller", "Gains", "Structure", "structure_of"]
 
@@ -99,7 +101,7 @@ class Gains:
         q = np.asarray(q, dtype=np.float64)
         return cls.pole_placement(dynamics.effective_inertia(q), wn, q)
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> JsonDict:
         """JSON-ready."""
         return {"kp": self.kp.tolist(), "ki": self.ki.tolist(), "kd": self.kd.tolist(),
                 "j_eff": self.j_eff.tolist(), "wn": self.wn, "tune_q": self.tune_q.tolist()}
@@ -197,7 +199,7 @@ class Controller:
                zip(self._c[k], self._ki, old, self._kq, ql, self._kd, vl, ff, strict=True)]
         return [m if t > m else (-m if t < -m else t) for t, m in zip(out, lim, strict=True)]
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JsonDict:
         """JSON-ready description of the controller."""
         return {"structure": self.structure.name, "rate_hz": self.rate_hz,
                 "torque_limit_nm": self.torque_limit.tolist(), **self.gains.as_dict()}

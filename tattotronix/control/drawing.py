@@ -7,24 +7,26 @@ What is played:
   here from ``data/ik/NAME.npz``; a built-in artwork with no stored files is planned here.
 * ``artwork.source=PATH``: the file is planned here, in memory (every stage).
 
-What is written (design section 8): ``data/runs/<name>-<backend>/log.npz`` (the sampled
-run), ``.../ink.png`` (what the simulated needle drew), ``.../ink_vs_plan.png`` (both
-inks, coloured by agreement) and ``data/metrics/runs/<name>-<backend>.json``.
+What is written (paths other tools rely on; README, "The stages"):
+``data/runs/<name>-<backend>/log.npz`` (the sampled run), ``.../ink.png`` (what the
+simulated needle drew), ``.../ink_vs_plan.png`` (both inks, coloured by agreement) and
+``data/metrics/runs/<name>-<backend>.json``.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
-from omegaconf import DictConfig, OmegaConf
 
 from tattotronix.art.artwork import BUILTINS, artwork_name
+from tattotronix.config.schema import Config, to_dict
 from tattotronix.control.analysis import loop_report
 from tattotronix.control.controller import Controller, Gains
 from tattotronix.control.dynamics import Dynamics
@@ -33,8 +35,17 @@ from tattotronix.control.reference import reference_at_ticks, resolve_window
 from tattotronix.control.simulate import Run, simulate, substeps_per_tick
 from tattotronix.control.tracking import TrackingErrors, tracking_errors
 from tattotronix.errors import StageInputMissing, TattotronixError
+from tattotronix.io.artifacts import (
+    TRAJECTORY,
+    IkRecord,
+    RunLogRecord,
+    TrajectoryRecord,
+    make_provenance,
+    run_dir,
+    run_label,
+)
+from tattotronix.io.jsontypes import JsonDict
 from tattotronix.io.outputs import Outputs
-from tattotronix.io.provenance import code_version, provenance_json
 from tattotronix.kinematics import Chain
 from tattotronix.plants import PlantSettings, make_plant
 from tattotronix.robot.description import RobotDescription, build_description
@@ -70,7 +81,7 @@ class Drawing:
 
 def available_drawings(data: Path) -> list[str]:
     """Stored trajectories and built-in artworks, by name."""
-    stored = sorted(p.stem for p in (data / "trajectories").glob("*.npz"))
+    stored = sorted(p.stem for p in TRAJECTORY.find(data))
     return stored + [b for b in BUILTINS if b not in stored]
 
 
@@ -78,14 +89,13 @@ def available_drawings(data: Path) -> list[str]:
 _TIMING_KEYS = ("feed_mark_mm_s", "feed_travel_mm_s", "lift_s")
 
 
-def _plain(cfg: Any) -> dict[str, Any]:
-    c = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True) if isinstance(
-        cfg, DictConfig) else cfg
-    assert isinstance(c, dict)
+def _plain(cfg: Config | Mapping[str, Any]) -> dict[str, Any]:
+    """The settings as plain values (a stored provenance's config is already plain)."""
+    c: Mapping[str, Any] = to_dict(cfg) if isinstance(cfg, Config) else cfg
     return {str(k): v for k, v in c.items()}
 
 
-def _path_settings(cfg: Any) -> dict[str, Any]:
+def _path_settings(cfg: Config | Mapping[str, Any]) -> dict[str, Any]:
     """The settings that shape the joint path (mask, toolpath geometry, IK)."""
     c = _plain(cfg)
     return {"mask": c.get("mask"), "ik": c.get("ik"),
@@ -93,7 +103,7 @@ def _path_settings(cfg: Any) -> dict[str, Any]:
                          if k not in _TIMING_KEYS}}
 
 
-def _timing_settings(cfg: Any) -> dict[str, Any]:
+def _timing_settings(cfg: Config | Mapping[str, Any]) -> dict[str, Any]:
     """The settings that time the path (speed, the time law, the marking feed, the planned
     travel's collision margin)."""
     c = _plain(cfg)
@@ -106,7 +116,7 @@ def _differ(want: dict[str, Any], have: dict[str, Any] | None) -> list[str]:
     return sorted(k for k in want if have is None or have.get(k) != want[k])
 
 
-def resolve_drawing(cfg: Any, data: Path, desc: RobotDescription) -> Drawing:
+def resolve_drawing(cfg: Config, data: Path, desc: RobotDescription) -> Drawing:
     """Find or plan the drawing ``cfg`` asks for (see the module docstring).
 
     A stored trajectory is played as is when it was planned with this config's path and
@@ -128,19 +138,21 @@ def resolve_drawing(cfg: Any, data: Path, desc: RobotDescription) -> Drawing:
         return Drawing(name, traj.t, traj.q, traj.qd, traj.kind, "planned",
                        {"artwork": Path(str(source))})
     name = str(art) if art is not None else artwork_name(cfg.artwork)
-    stored = data / "trajectories" / f"{name}.npz"
-    ik_file = data / "ik" / f"{name}.npz"
+    stored = TrajectoryRecord.path(data, name=name)
+    ik_file = IkRecord.path(data, name=name)
     same_path = True
-    planned_from: Any = None
+    planned_from: object = None
     if stored.exists():
         st = load_trajectory(stored)
-        have = st.provenance.get("config")
+        config = st.provenance.get("config")
+        have = config if isinstance(config, Mapping) else None
         path_diff = _differ(_path_settings(cfg), _path_settings(have) if have else None)
         time_diff = _differ(_timing_settings(cfg), _timing_settings(have) if have else None)
         if not path_diff and not time_diff:
             return Drawing(name, st.t, st.q, st.qd, st.kind, "stored", {"trajectory": stored})
         same_path = not path_diff
-        planned_from = ((have or {}).get("artwork") or {}).get("source")
+        artwork = (have or {}).get("artwork")
+        planned_from = artwork.get("source") if isinstance(artwork, Mapping) else None
         log.info("draw %s: the stored trajectory was planned with other %s: %s", name,
                  ", ".join(path_diff + time_diff), "re-timing" if same_path else "re-planning")
     if same_path and ik_file.exists():
@@ -150,7 +162,7 @@ def resolve_drawing(cfg: Any, data: Path, desc: RobotDescription) -> Drawing:
         traj = plan_drawing(cfg, name, name, desc)
         return Drawing(name, traj.t, traj.q, traj.qd, traj.kind, "planned", {})
     if not same_path and planned_from is not None and Path(str(planned_from)).is_file():
-        traj = plan_drawing(cfg, planned_from, name, desc)
+        traj = plan_drawing(cfg, str(planned_from), name, desc)
         return Drawing(name, traj.t, traj.q, traj.qd, traj.kind, "planned",
                        {"artwork": Path(str(planned_from))})
     if not same_path:
@@ -243,7 +255,7 @@ class ClosedLoop:
 
     def errors(self, chain: Chain, settle_periods: float,
                tips: tuple[Array, Array] | None = None) -> TrackingErrors:
-        """The sampled tracking errors (reference section 5.5).
+        """The sampled tracking errors (docs/original.md, "5.5 Tracking error").
 
         Args:
             chain: the kinematic chain (FK of the tip).
@@ -259,7 +271,7 @@ class ClosedLoop:
         return tracking_errors(self.run.t[idx], tip, tip_ref, self.drawing.t,
                                self.drawing.kind, self.controller.gains.wn, settle_periods)
 
-    def metrics(self, err: TrackingErrors) -> dict[str, Any]:
+    def metrics(self, err: TrackingErrors) -> JsonDict:
         """Tracking, verdict, controller, plant and loop analysis: plain JSON values."""
         return _finite({
             "name": self.drawing.name, "backend": self.backend,
@@ -273,13 +285,13 @@ class ClosedLoop:
         })
 
 
-def run_closed_loop(cfg: Any, data: Path, desc: RobotDescription, drawing: Drawing, *,
+def run_closed_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Drawing, *,
                     window: object = None, plant_dt_s: float | None = None,
                     progress: bool = False, viewer: bool = False) -> ClosedLoop:
     """Run ``drawing`` closed loop on the configured backend and controller.
 
     Args:
-        cfg: the composed config (``backend``, ``controller``, ``plant``, ``draw``).
+        cfg: the settings (``backend``, ``controller``, ``plant``, ``draw``).
         data: the data folder (the generated URDF and MJCF).
         desc: the robot description.
         drawing: what to play.
@@ -292,7 +304,7 @@ def run_closed_loop(cfg: Any, data: Path, desc: RobotDescription, drawing: Drawi
     Raises:
         TattotronixError: missing models, a bad rate, tuning pose or window.
     """
-    backend = str(getattr(cfg.backend, "name", cfg.backend))
+    backend = cfg.backend.name
     urdf = data / "robot" / f"{desc.name}.urdf"
     mjcf = data / "robot" / f"{desc.name}.xml"
     for f in (urdf, mjcf):
@@ -339,7 +351,7 @@ def run_closed_loop(cfg: Any, data: Path, desc: RobotDescription, drawing: Drawi
                       backend, settings.dt_s)
 
 
-def draw_simulated(cfg: Any, out: Outputs) -> dict[str, Any]:
+def draw_simulated(cfg: Config, out: Outputs) -> JsonDict:
     """Run the configured drawing on the configured simulated backend; write its outputs.
 
     Returns:
@@ -352,12 +364,12 @@ def draw_simulated(cfg: Any, out: Outputs) -> dict[str, Any]:
     return _score_and_write(cfg, out, loop, desc)
 
 
-def _score_and_write(cfg: Any, out: Outputs, loop: ClosedLoop,
+def _score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
                      desc: RobotDescription) -> dict[str, Any]:
     run, drawing, backend = loop.run, loop.drawing, loop.backend
     # the jobs of a multirun (draw.py -m controller.wn=40,80) each get their own outputs
-    label = f"{drawing.name}-{backend}" + out.sweep_suffix(
-        ("backend", "art", "artwork.name", "artwork.source", "draw.progress", "viewer"))
+    label = run_label(drawing.name, backend, out.sweep_suffix(
+        ("backend", "art", "artwork.name", "artwork.source", "draw.progress", "viewer")))
     chain = Chain.from_description(desc)
     k = len(run.t)
     tip, _ = chain.fk(run.q) if k else (np.zeros((0, 3)), None)
@@ -371,20 +383,17 @@ def _score_and_write(cfg: Any, out: Outputs, loop: ClosedLoop,
     plan_ink = rasterise_ink(tip_ref, origin, grid, float(cfg.draw.needle_mm))
     ink = compare_ink(sim_ink, plan_ink, res)
 
-    run_dir = out.path("runs", label)
+    run_folder = run_dir(out.data, label)
     ink_img, cmp_img = _ink_images(sim_ink, plan_ink)
     dpi = 25.4 / res
-    ink_img.save(out.tmp_path(run_dir / "ink.png"), format="PNG", dpi=(dpi, dpi))
-    cmp_img.save(out.tmp_path(run_dir / "ink_vs_plan.png"), format="PNG", dpi=(dpi, dpi))
-    config = _plain(cfg)
-    prov = provenance_json({str(a): b for a, b in config.items()}, drawing.inputs,
-                           code_version())
-    np.savez_compressed(
-        out.tmp_path(run_dir / "log.npz"),
-        joints=np.array(desc.joint_names), t=run.t[idx], q=run.q[idx], qd=run.qd_samples,
+    ink_img.save(out.tmp_path(run_folder / "ink.png"), format="PNG", dpi=(dpi, dpi))
+    cmp_img.save(out.tmp_path(run_folder / "ink_vs_plan.png"), format="PNG", dpi=(dpi, dpi))
+    RunLogRecord(
+        joints=desc.joint_names, t=run.t[idx], q=run.q[idx], qd=run.qd_samples,
         tau=run.tau[idx], q_ref=run.ref.q[idx], qd_ref=run.ref.qd[idx], tip=tip[idx],
         tip_ref=tip_ref[idx], error_m=err.error_m, down=err.down, settled=err.settled,
-        provenance=np.array(prov))
+    ).save(out.tmp_path(RunLogRecord.path(out.data, label=label)),
+           make_provenance(cfg, drawing.inputs))
     metrics = loop.metrics(err)
     metrics.update(_finite({
         **ink.metrics(),
@@ -394,6 +403,7 @@ def _score_and_write(cfg: Any, out: Outputs, loop: ClosedLoop,
                   "contacts": bool(cfg.plant.contacts)},
     }))
     out.write_json(out.path("metrics", "runs", f"{label}.json"), metrics)
+    out.write_timings("runs", label, run.timings())
     log.info("draw %s on %s: %s; settled %s / %s um (mean / max), marking max %s um, "
              "peak %.3f N m, ink IoU %.3f, %.0fx real time (%.1f s)", drawing.name, backend,
              run.verdict, _fmt(metrics["settled_mean_um"]), _fmt(metrics["settled_max_um"]),
@@ -402,5 +412,5 @@ def _score_and_write(cfg: Any, out: Outputs, loop: ClosedLoop,
     return metrics
 
 
-def _fmt(v: float | None) -> str:
-    return "-" if v is None else f"{v:.2f}"
+def _fmt(v: object) -> str:
+    return f"{v:.2f}" if isinstance(v, int | float) else "-"

@@ -1,8 +1,10 @@
 """Rigid-body dynamics of the arm from Pinocchio: RNEA, CRBA, ABA and the effective inertia.
 
-``M(q) qdd + C(q, qd) qd + G(q) = tau`` (reference section 5.1), gravity along -z at the
-description's magnitude. The model is built once from the generated URDF (immutable); a
-:class:`Dynamics` owns one Pinocchio ``Data`` (per-run state), so use one per thread.
+``M(q) qdd + C(q, qd) qd + G(q) = tau`` (docs/control.md, "The rigid-body model"; the
+original's: docs/original.md, "5.1 The rigid-body model"), gravity along -z at the
+description's magnitude. The model is the process's shared, read-only one of the generated
+URDF (``load_pinocchio`` in tattotronix/robot/loaders.py); a :class:`Dynamics` owns one
+Pinocchio ``Data`` (per-run state), so use one per thread.
 """
 
 from __future__ import annotations

@@ -11,11 +11,12 @@ symmetric Hausdorff distance between the two inked areas, mm).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
+
+from tattotronix.io.jsontypes import JsonDict
 
 __all__ = ["InkGrid", "InkComparison", "compare_ink", "ink_grid", "rasterise_ink"]
 
@@ -103,7 +104,7 @@ class InkComparison:
     sim_px: int
     plan_px: int
 
-    def metrics(self) -> dict[str, Any]:
+    def metrics(self) -> JsonDict:
         """JSON-ready."""
         return {"ink_iou": self.iou, "ink_max_dev_mm": self.max_dev_mm,
                 "ink_px": self.sim_px, "plan_ink_px": self.plan_px}

@@ -58,7 +58,8 @@ def resolve_window(window: object, t: Array, kind: NDArray[np.int8],
 
     Args:
         window: ``None`` (all), ``[start_s, length_s]``, ``[start_s]`` (to the end) or
-            ``"busiest"`` (the 12 s window with the most needle entries, section 5.5).
+            ``"busiest"`` (the 12 s window with the most needle entries: docs/original.md,
+            "5.5 Tracking error").
         t: trajectory point times, s.
         kind: point kinds (0 travel, 1 mark, 2 approach).
         busiest_s: the length of the busiest window, s.

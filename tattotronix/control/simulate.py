@@ -14,14 +14,15 @@ import gc
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from tattotronix.config.schema import PlantConfig
 from tattotronix.control.controller import Controller
 from tattotronix.control.reference import Reference
 from tattotronix.errors import TattotronixError
+from tattotronix.io.jsontypes import JsonDict
 from tattotronix.plants.base import Plant
 
 __all__ = ["Run", "simulate", "substeps_per_tick"]
@@ -31,7 +32,7 @@ Array = NDArray[np.float64]
 #: (simulated seconds done, wall seconds so far) -> None
 Progress = Callable[[float, float], None]
 
-SATURATION = 0.999  # of the torque limit: "saturated" (reference section 5.5)
+SATURATION = 0.999  # of the torque limit: "saturated" (docs/original.md, "5.5 Tracking error")
 
 
 @dataclass(frozen=True)
@@ -81,11 +82,15 @@ class Run:
         """max over ticks and joints of |tau|, N m."""
         return float(np.abs(self.tau).max()) if len(self.tau) else 0.0
 
-    def summary(self) -> dict[str, Any]:
-        """JSON-ready."""
+    def timings(self) -> dict[str, float]:
+        """Wall time of the loop and the real-time factor (they vary from run to run, so
+        they never go into a metrics file)."""
+        return {"wall_s": self.wall_s, "realtime_factor": self.realtime_factor}
+
+    def summary(self) -> JsonDict:
+        """JSON-ready; the same on every run of the same inputs (no wall times)."""
         return {"backend": self.backend, "verdict": self.verdict, "reason": self.reason,
-                "completed": self.completed, "sim_s": self.sim_s, "wall_s": self.wall_s,
-                "realtime_factor": self.realtime_factor, "ticks": len(self.t),
+                "completed": self.completed, "sim_s": self.sim_s, "ticks": len(self.t),
                 "substeps": self.substeps, "peak_torque_nm": self.peak_torque_nm}
 
 
@@ -117,7 +122,8 @@ def _check(plant: Plant, q: Array, ref: Reference, k: int, abort_error_rad: floa
 
 
 def simulate(plant: Plant, controller: Controller, ref: Reference, *, sample_every: int,
-             abort_error_rad: float = 1.0, progress: Progress | None = None,
+             abort_error_rad: float = PlantConfig().abort_error_rad,
+             progress: Progress | None = None,
              progress_every_s: float = 1.0, viewer: bool = False) -> Run:
     """Run ``controller`` on ``plant`` along ``ref`` from the reference's first state.
 

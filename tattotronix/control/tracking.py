@@ -1,4 +1,4 @@
-"""Tracking error, exactly as reference section 5.5 defines it.
+"""Tracking error, exactly as the original defined it (docs/original.md, "5.5 Tracking error").
 
 * The error is the 3-D distance between the tip at the simulated ``q`` and the tip at the
   reference ``q_r`` at the same instant (lag and depth included), sampled every
@@ -20,6 +20,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tattotronix.config.schema import DrawConfig
+from tattotronix.io.jsontypes import JsonDict
 from tattotronix.trajectory.path import MARK
 
 __all__ = ["TrackingErrors", "busiest_window", "down_at", "entry_times", "tracking_errors"]
@@ -29,7 +31,8 @@ UM_PER_M = 1e6
 
 
 def down_at(t_points: Array, kind: NDArray[np.int8], t: Array) -> NDArray[np.bool_]:
-    """Whether the needle is marking at times ``t`` (section 5.5's interpolated flag)."""
+    """Whether the needle is marking at times ``t`` (the original's interpolated flag,
+    docs/original.md, "5.5 Tracking error")."""
     m = ((kind[:-1] == MARK) & (kind[1:] == MARK)).astype(np.float64)
     return np.interp(t, t_points[:-1], m) > 0.5
 
@@ -44,7 +47,8 @@ def entry_times(t_points: Array, kind: NDArray[np.int8]) -> Array:
 
 def busiest_window(t_points: Array, kind: NDArray[np.int8],
                    length_s: float = 12.0) -> tuple[float, float]:
-    """The ``length_s`` window with the most needle entries (section 5.5).
+    """The ``length_s`` window with the most needle entries (docs/original.md, "5.5
+    Tracking error").
 
     For each entry time ``t_e`` count entries in ``[t_e, t_e + length)``; start at the
     entry with the most (the first such). Returns ``(start_s, length_s)``.
@@ -75,7 +79,7 @@ class TrackingErrors:
     settled: NDArray[np.bool_]
     entries: int
 
-    def metrics(self) -> dict[str, Any]:
+    def metrics(self) -> JsonDict:
         """``settled_mean_um``, ``settled_max_um``, ``marking_mean_um``, ``marking_max_um``,
         ``travel_mean_um``, ``entry_max_um`` (the worst marking sample within the settling
         time after an entry; None where no sample qualifies), ``samples``, ``entries``."""
@@ -103,7 +107,7 @@ class TrackingErrors:
 
 def tracking_errors(t: Array, tip: Array, tip_ref: Array, t_points: Array,
                     kind: NDArray[np.int8], wn: float,
-                    settle_periods: float = 4.0) -> TrackingErrors:
+                    settle_periods: float = DrawConfig().settle_periods) -> TrackingErrors:
     """Score sampled tips against the reference (see the module docstring).
 
     Args:

@@ -24,6 +24,7 @@ import sys
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 __all__ = ["CodeGraph", "StageDeps", "check", "code_deps", "stage_deps", "write"]
 
@@ -214,7 +215,7 @@ def _is_code(dep: object) -> bool:
     return isinstance(dep, str) and dep.startswith(CODE_PREFIXES)
 
 
-def _stage_bodies(doc: dict) -> Iterator[tuple[str, dict]]:
+def _stage_bodies(doc: dict[str, Any]) -> Iterator[tuple[str, dict[str, Any]]]:
     for name, stage in doc["stages"].items():
         yield name, (stage["do"] if "do" in stage else stage)
 

@@ -28,11 +28,16 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tattotronix.config.schema import Config, HardwareConfig
 from tattotronix.errors import TattotronixError
-from tattotronix.hardware.pca9685 import PCA9685, BusError, RecordingBus, open_bus
+from tattotronix.hardware.pca9685 import PCA9685, BusError, RecordingBus, SMBusLike, open_bus
 from tattotronix.hardware.program import ServoProgram
 from tattotronix.hardware.servos import Calibration, load_calibration
-from tattotronix.kinematics import Chain, solve_path
+from tattotronix.io.artifacts import run_dir, run_label
+from tattotronix.io.jsontypes import JsonDict
+from tattotronix.io.outputs import Outputs
+from tattotronix.kinematics import Chain, IkOptions, solve_path
+from tattotronix.robot.description import RobotDescription, build_description
 
 __all__ = ["ArmSession", "ArmState", "Paused", "calibration_from_config", "check_drawing_clear",
            "ramp"]
@@ -66,7 +71,7 @@ class Paused(TattotronixError):
     """The drawing stopped on request (Ctrl-C / SIGTERM); the message says how to resume."""
 
 
-def calibration_from_config(hw: Any, joint_names: tuple[str, ...]) -> Calibration:
+def calibration_from_config(hw: HardwareConfig, joint_names: tuple[str, ...]) -> Calibration:
     """The calibration: ``hardware.calibration_file`` if set, else ``hardware.servos``."""
     if hw.calibration_file:
         return load_calibration(Path(str(hw.calibration_file)), joint_names)
@@ -204,12 +209,12 @@ class ArmSession:
     clearance_z_m: float
     feed_m_s: float
     ramp_rad_s: float
-    ik: dict[str, Any]
+    ik: IkOptions
     dry_run: bool = True
     realtime: bool = True
     resume: bool = False
     fail_after_writes: int | None = None
-    save_every_s: float = 1.0
+    save_every_s: float = HardwareConfig().save_every_s
 
     # -------------------------------------------------------------- geometry helpers
 
@@ -247,7 +252,7 @@ class ArmSession:
 
     # -------------------------------------------------------------- the run
 
-    def run(self) -> dict[str, Any]:
+    def run(self) -> JsonDict:
         """Ramp, stream, and stop safely (see the module docstring).
 
         Raises:
@@ -282,7 +287,7 @@ class ArmSession:
         mode = "a" if self.resume else "w"  # a resume appends to the drawing's logs
         poses_fh = open(self.run_dir / "poses.jsonl", mode, encoding="utf-8")  # noqa: SIM115
         i2c_path = self.run_dir / "i2c.jsonl"
-        bus: Any = RecordingBus(fail_after=self.fail_after_writes) if self.dry_run else \
+        bus: SMBusLike = RecordingBus(fail_after=self.fail_after_writes) if self.dry_run else \
             open_bus(self.calib.device, self.calib.address)
         frame = start
         status, reason = "drawing", ""
@@ -341,7 +346,7 @@ class ArmSession:
             state.reason = reason
             state.save(self.state_file)
         wall = time.perf_counter() - t0
-        summary = {"name": self.name, "backend": "arm", "dry_run": self.dry_run,
+        summary: JsonDict = {"name": self.name, "backend": "arm", "dry_run": self.dry_run,
                    "status": status, "reason": reason, "frames": prog.frames,
                    "start_frame": start, "stopped_at_frame": frame,
                    "frames_sent": stream.sent if stream else 0,
@@ -368,7 +373,7 @@ class ArmSession:
         return last + 1
 
 
-def build_program(cfg: Any, desc: Any, t: Array, q: Array, qd: Array
+def build_program(cfg: Config, desc: RobotDescription, t: Array, q: Array, qd: Array
                   ) -> tuple[ServoProgram, Calibration]:
     """The calibration from the config and the program of a timed drawing."""
     from tattotronix.hardware.program import compile_program
@@ -379,7 +384,7 @@ def build_program(cfg: Any, desc: Any, t: Array, q: Array, qd: Array
     return program, calib
 
 
-def check_drawing_clear(cfg: Any, desc: Any, t: Array, q: Array) -> None:
+def check_drawing_clear(cfg: Config, desc: RobotDescription, t: Array, q: Array) -> None:
     """Refuse, before anything reaches the bus, a drawing that collides or comes within
     ``collision.margin_mm`` (samples and the motion between them; the collision stage's
     check, run here on whatever drawing the arm is about to play).
@@ -391,16 +396,15 @@ def check_drawing_clear(cfg: Any, desc: Any, t: Array, q: Array) -> None:
     from tattotronix.collision.model import CollisionModel
 
     rep = check_trajectory(CollisionModel(desc), t, q,
-                           margin_m=float(cfg.collision.margin_mm) / 1e3,
-                           plunge_m=float(cfg.toolpath.plunge_mm) / 1e3,
-                           resolution_m=float(cfg.collision.resolution_mm) / 1e3)
+                           margin_m=cfg.collision.margin_m, plunge_m=cfg.toolpath.plunge_m,
+                           resolution_m=cfg.collision.resolution_m)
     if not rep.ok:
         raise CollisionRefused(rep)
     log.info("arm: the drawing is clear of collisions (least clearance %.2f mm, %s)",
              rep.min_clearance_m[rep.worst] * 1e3, rep.pair_names[rep.worst])
 
 
-def draw_on_arm(cfg: Any, out: Any) -> dict[str, Any]:
+def draw_on_arm(cfg: Config, out: Outputs) -> JsonDict:
     """``draw.py backend=arm``: compile the drawing and stream it (see the module docstring).
 
     Writes ``data/runs/<name>-arm/{i2c.jsonl (dry run), poses.jsonl}``, the arm state file,
@@ -408,7 +412,6 @@ def draw_on_arm(cfg: Any, out: Any) -> dict[str, Any]:
     """
     from tattotronix.control.drawing import resolve_drawing
     from tattotronix.pipeline import ik_settings
-    from tattotronix.robot.description import build_description
 
     desc = build_description(cfg.robot)
     if cfg.window is not None:
@@ -417,15 +420,15 @@ def draw_on_arm(cfg: Any, out: Any) -> dict[str, Any]:
     drawing = resolve_drawing(cfg, out.data, desc)
     check_drawing_clear(cfg, desc, drawing.t, drawing.q)
     program, calib = build_program(cfg, desc, drawing.t, drawing.q, drawing.qd)
-    clearance = float(cfg.toolpath.panel_origin[2]) + float(cfg.toolpath.clearance_mm) / 1e3
+    clearance = float(cfg.toolpath.panel_origin[2]) + cfg.toolpath.clearance_m
     speed = float(cfg.hardware.ramp_rad_s)
     if not (np.isfinite(speed) and speed > 0):
         raise TattotronixError(f"hardware.ramp_rad_s={speed}: give a positive speed in rad/s")
     session = ArmSession(
         name=drawing.name, program=program, calib=calib, chain=Chain.from_description(desc),
-        run_dir=out.path("runs", f"{drawing.name}-arm"),
+        run_dir=run_dir(out.data, run_label(drawing.name, "arm")),
         state_file=out.path(*Path(str(cfg.hardware.state_file)).parts),
-        clearance_z_m=clearance, feed_m_s=float(cfg.toolpath.feed_mark_mm_s) / 1e3,
+        clearance_z_m=clearance, feed_m_s=cfg.toolpath.feed_mark_m_s,
         ramp_rad_s=speed, ik=ik_settings(cfg.ik), dry_run=bool(cfg.dry_run),
         realtime=bool(cfg.realtime), resume=bool(cfg.resume),
         fail_after_writes=cfg.hardware.fail_after_writes,

@@ -1,4 +1,4 @@
-"""The PCA9685 16-channel PWM board on I2C (reference/original.md section 6.2).
+"""The PCA9685 16-channel PWM board on I2C (docs/original.md, "6.2 The PCA9685 driver").
 
 Every servo pulse is timed by the board: one frame of 4096 counts at the frame rate set by
 the prescaler, each channel switched on at count 0 and off at its own count. At 50 Hz and
@@ -60,7 +60,7 @@ __all__ = [
 
 log = logging.getLogger(__name__)
 
-# Registers (datasheet section 7.3).
+# Registers (docs/original.md, "6.2 The PCA9685 driver"; NXP's PCA9685 datasheet, 7.3).
 MODE1 = 0x00
 MODE2 = 0x01
 LED0_ON_L = 0x06  # channel n at LED0_ON_L + 4 n: ON_L, ON_H, OFF_L, OFF_H
@@ -101,16 +101,17 @@ class BusError(HardwareError):
 class SMBusLike(Protocol):
     """The part of ``smbus2.SMBus`` the driver uses (the real bus or :class:`RecordingBus`)."""
 
-    def write_byte_data(self, i2c_addr: int, register: int, value: int, /) -> Any:
+    def write_byte_data(self, i2c_addr: int, register: int, value: int, /) -> object:
         """Write one byte to a register."""
 
-    def write_i2c_block_data(self, i2c_addr: int, register: int, data: list[int], /) -> Any:
+    def write_i2c_block_data(self, i2c_addr: int, register: int, data: list[int], /
+                             ) -> object:
         """Write consecutive registers starting at ``register`` in one transfer."""
 
     def read_byte_data(self, i2c_addr: int, register: int, /) -> int:
         """Read one register."""
 
-    def close(self) -> Any:
+    def close(self) -> object:
         """Release the bus."""
 
 
@@ -519,17 +520,18 @@ class RecordingBus:
             for i, b in enumerate(data):
                 self._registers[(addr, (reg + i) & 0xFF)] = b
 
-    def write_byte_data(self, i2c_addr: int, register: int, value: int, force: Any = None) -> None:
+    def write_byte_data(self, i2c_addr: int, register: int, value: int,
+                        force: bool | None = None) -> None:
         """Record a single-register write."""
         self._record(i2c_addr, register, [value])
 
     def write_i2c_block_data(
-        self, i2c_addr: int, register: int, data: Sequence[int], force: Any = None
+        self, i2c_addr: int, register: int, data: Sequence[int], force: bool | None = None
     ) -> None:
         """Record a block write (one transfer)."""
         self._record(i2c_addr, register, list(data))
 
-    def read_byte_data(self, i2c_addr: int, register: int, force: Any = None) -> int:
+    def read_byte_data(self, i2c_addr: int, register: int, force: bool | None = None) -> int:
         """The last value written to the register (0 if never written or without memory)."""
         return self._registers.get((i2c_addr, register), 0) if self.memory else 0
 
@@ -556,7 +558,7 @@ class RecordingBus:
         return "".join(line + "\n" for line in self.transcript_lines())
 
 
-def open_bus(device: str = "/dev/i2c-1", address: int = 0x40) -> Any:
+def open_bus(device: str = "/dev/i2c-1", address: int = 0x40) -> SMBusLike:
     """Open the Linux I2C device and check that the PCA9685 answers at ``address``.
 
     Args:

@@ -19,7 +19,6 @@ from __future__ import annotations
 import hashlib
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -27,6 +26,8 @@ from scipy.interpolate import CubicHermiteSpline
 
 from tattotronix.hardware.pca9685 import prescaler
 from tattotronix.hardware.servos import Calibration
+from tattotronix.io.artifacts import ServoProgramRecord
+from tattotronix.io.jsontypes import JsonDict
 from tattotronix.kinematics import Chain
 
 __all__ = ["ServoProgram", "compile_program", "count_period_us", "rate_clamp"]
@@ -92,6 +93,13 @@ class ServoProgram:
         h.update(repr((self.channels, self.frame_hz)).encode())
         return h.hexdigest()[:16]
 
+    def record(self) -> ServoProgramRecord:
+        """What the ``deploy`` stage stores (``deploy/<name>.npz``; the clamp counts are in
+        its metrics)."""
+        return ServoProgramRecord(t=self.t, q=self.q, counts=self.counts,
+                                  channels=self.channels, frame_hz=self.frame_hz,
+                                  count_us=self.count_us)
+
     def row(self, i: int) -> dict[int, int]:
         """``{channel: counts}`` of frame ``i``."""
         return dict(zip(self.channels, (int(c) for c in self.counts[i]), strict=True))
@@ -101,7 +109,7 @@ class ServoProgram:
         return np.array([calib.positions(self.row(i), self.count_us)
                          for i in range(self.frames)]).reshape(self.q.shape)
 
-    def metrics(self, calib: Calibration, chain: Chain) -> dict[str, Any]:
+    def metrics(self, calib: Calibration, chain: Chain) -> JsonDict:
         """Frames, count steps, quantisation per joint (deg) and the tip error it implies."""
         steps = np.abs(np.diff(self.counts, axis=0)).max(axis=0) if self.frames > 1 else \
             np.zeros(len(self.channels), dtype=np.int64)

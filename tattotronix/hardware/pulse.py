@@ -1,4 +1,5 @@
-"""Hold one servo pulse for calibration (``stages/servo_pulse.py``, reference section 6.5).
+"""Hold one servo pulse for calibration (``stages/servo_pulse.py``; README, "Calibrating the
+servos").
 
 One channel, one width in 400..2600 us; further widths are read line by line; an empty
 line (or the end of input) switches that channel off and ends. The width actually sent

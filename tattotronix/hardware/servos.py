@@ -1,4 +1,5 @@
-"""Servo calibration: joint angle to pulse width to PCA9685 count (reference section 6.3).
+"""Servo calibration: joint angle to pulse width to PCA9685 count (docs/original.md, "6.3
+Pulse mapping").
 
 Each servo maps a joint angle linearly to a pulse width and clamps it to its safe travel::
 
@@ -27,7 +28,7 @@ A calibration file (``servo_calibration.yaml``)::
 in one :class:`CalibrationError`, each naming the joint and the key.
 
 The declared values (:func:`default_calibration`) are catalogue figures, **not measured**:
-calibrate each servo (reference section 6.5) before trusting the pulse widths.
+calibrate each servo (README, "Calibrating the servos") before trusting the pulse widths.
 
 Units: angles in rad, pulse widths in microseconds (``_us``), frequencies in Hz.
 """
@@ -45,6 +46,7 @@ from typing import Any
 import numpy as np
 
 from tattotronix.hardware.pca9685 import CHANNELS, COUNTS, HardwareError, round_half_away
+from tattotronix.io.jsontypes import JsonDict
 
 __all__ = [
     "Calibration",
@@ -470,7 +472,7 @@ class Calibration:
     @classmethod
     def from_mapping(
         cls,
-        mapping: Any,
+        mapping: object,
         joint_names: Sequence[str] = DEFAULT_JOINT_NAMES,
         *,
         source: str = "servo calibration",
@@ -587,7 +589,7 @@ class Calibration:
             frame_hz=frame_hz, address=address, device=device,
         )
 
-    def to_mapping(self) -> dict[str, Any]:
+    def to_mapping(self) -> JsonDict:
         """The calibration as a plain dict in the file's layout (``from_mapping`` inverse)."""
         joints: dict[str, dict[str, Any]] = {}
         for j in self.joints:
@@ -722,7 +724,7 @@ def _joint_values(name: str, entry: Any, problems: list[str]) -> dict[str, Any] 
     return values
 
 
-def default_calibration_mapping() -> dict[str, Any]:
+def default_calibration_mapping() -> JsonDict:
     """The declared (catalogue, not measured) calibration as a plain dict (file layout)."""
     servo = {"zero_us": DECLARED_ZERO_US, "us_per_rad": DECLARED_US_PER_RAD,
              "min_us": DECLARED_MIN_US, "max_us": DECLARED_MAX_US}
@@ -742,7 +744,8 @@ def default_calibration() -> Calibration:
     """The declared calibration: every servo 1500 us at zero, 636.62 us/rad, 500...2500 us.
 
     Channels 0...5 (joint_2 on 1 and, mirrored, 2), tool on 6 (never driven). Catalogue
-    values, **not measured**: calibrate (reference section 6.5) before trusting them.
+    values, **not measured**: calibrate (README, "Calibrating the servos") before trusting
+    them.
     """
     return Calibration.from_mapping(default_calibration_mapping(), DEFAULT_JOINT_NAMES,
                                     source="default servo calibration")
@@ -769,7 +772,8 @@ def load_calibration(
     if not p.is_file():
         raise CalibrationError(
             ["file not found: copy the declared calibration (tattotronix.hardware.servos."
-             "default_calibration_mapping) and calibrate it (reference section 6.5)"],
+             "default_calibration_mapping) and calibrate it (README, 'Calibrating the "
+             "servos')"],
             source,
         )
     try:

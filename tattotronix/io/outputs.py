@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import os
 import shutil
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -73,6 +73,13 @@ class Outputs:
     def write_json(self, target: Path, obj: object) -> Path:
         """Stage a JSON file (sorted keys, 2-space indent, trailing newline)."""
         return self.write_text(target, json.dumps(obj, indent=2, sort_keys=True) + "\n")
+
+    def write_timings(self, stage: str, name: str, timings: Mapping[str, float]) -> Path:
+        """Stage the wall times of a run: ``timings/<stage>/<name>.json`` under the data
+        folder. They vary from run to run, so they are kept apart from the metrics (which
+        must be byte-identical for the same inputs) and are not tracked by DVC or git."""
+        return self.write_json(self.path("timings", stage, f"{name}.json"),
+                               {k: float(v) for k, v in timings.items()})
 
     def tmp_path(self, target: Path) -> Path:
         """A temporary path for a writer that needs a file name (npz, png, ...)."""

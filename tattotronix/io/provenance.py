@@ -2,13 +2,18 @@
 
 from __future__ import annotations
 
+import dataclasses
+import enum
 import hashlib
 import json
 import subprocess
 from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
-__all__ = ["code_version", "file_sha256", "provenance_json"]
+from tattotronix.io.jsontypes import JsonDict
+
+__all__ = ["code_version", "config_sha256", "file_sha256", "plain_config", "provenance_json"]
 
 _ROOT = Path(__file__).resolve().parents[2]
 
@@ -38,9 +43,42 @@ def file_sha256(file: str | Path) -> str:
     return h.hexdigest()
 
 
+def _plain(value: Any) -> Any:
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return {f.name: _plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+    if isinstance(value, enum.Enum):
+        return value.name
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    return value
+
+
+def plain_config(cfg: object) -> JsonDict:
+    """The resolved config as plain containers (enums by name), from an OmegaConf
+    ``DictConfig``, a config dataclass (``tattotronix.config.schema.Config``) or a mapping.
+    """
+    from omegaconf import DictConfig, OmegaConf
+
+    if isinstance(cfg, DictConfig):
+        cfg = OmegaConf.to_container(cfg, resolve=True, enum_to_str=True)
+    plain = _plain(cfg)
+    if not isinstance(plain, dict):
+        raise TypeError(f"a config is a mapping or a dataclass, not {type(cfg).__name__}")
+    return plain
+
+
+def config_sha256(config: Mapping[str, object]) -> str:
+    """Hex SHA-256 of the resolved config's JSON (sorted keys, compact)."""
+    text = json.dumps(config, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
+
 def provenance_json(config: Mapping[str, object], inputs: Mapping[str, str | Path],
                     code_version: str) -> str:
-    """The provenance string: the resolved config, the code version, input file hashes.
+    """The provenance string: the resolved config and its hash (:func:`config_sha256`),
+    the code version, input file hashes.
 
     Args:
         config: the composed config as plain containers (``OmegaConf.to_container(cfg,
@@ -50,6 +88,7 @@ def provenance_json(config: Mapping[str, object], inputs: Mapping[str, str | Pat
     """
     return json.dumps({
         "config": dict(config),
+        "config_sha256": config_sha256(config),
         "code_version": code_version,
         "inputs": {k: {"path": str(p), "sha256": file_sha256(p)} for k, p in inputs.items()},
     }, sort_keys=True)

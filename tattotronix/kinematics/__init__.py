@@ -6,6 +6,7 @@ from tattotronix.kinematics.chain import Chain, ChainState
 from tattotronix.kinematics.ik import (
     Conditioning,
     IkFailure,
+    IkOptions,
     IkResult,
     IkVerificationError,
     PinocchioTip,
@@ -24,6 +25,7 @@ __all__ = [
     "ChainState",
     "Conditioning",
     "IkFailure",
+    "IkOptions",
     "IkResult",
     "IkVerificationError",
     "PinocchioTip",

@@ -1,6 +1,7 @@
 """Whole-path inverse kinematics: the tip on the target with the needle along a given axis.
 
-Reference: ``original.md`` sections 3.1 (task Jacobian), 3.2 (solver), 3.3 (refusal).
+Explained in docs/kinematics.md, "Inverse kinematics"; the original's method is
+docs/original.md, "3.1 The task Jacobian", "3.2 The solver" and "3.3 Refusals".
 
 **Task.** Five coordinates: the tip position (3) and the needle axis (2). The needle is a
 body of revolution, so the spin about it is free and the solver works with a 5x5 task
@@ -11,7 +12,7 @@ current needle axis and ``u``, ``v`` a basis normal to it (``a = x`` unless
 product, ``u . (w x z) = w . v`` and ``v . (w x z) = -w . u``, which is how they are formed.
 
 **Solver** (damped least squares): error ``e = [p_des - p; u . (z_des - z); v . (z_des -
-z)]``; step ``dq = J^T (J J^T + damping I)^-1 e`` (damping added as is, not squared);
+z)]``; step ``dq = J^T (J J^T + lambda I)^-1 e`` (``dls_lambda`` added as is, not squared);
 ``q <- clip(q + dq, lower, upper)``. Convergence ``|e| < tol`` is tested at the top of
 each iteration, at most ``max_iter`` of them. A point that does not converge reports the
 residual ``|[p_des - p, z_des - z]|`` and a reason: ``joint limit`` when a clamp bit in
@@ -50,7 +51,7 @@ Use (what the ``ik`` stage does)::
 
     chain = Chain.from_description(desc)
     ref = PinocchioTip.from_urdf(out.path("robot", "tattotronix.urdf"), desc.tip_frame)
-    res = solve_path(chain, xyz_m, damping=..., max_iter=..., tol=..., seed=...,
+    res = solve_path(chain, xyz_m, dls_lambda=..., max_iter=..., tol=..., seed=...,
                      needle_axis=..., progress=bar)
     res.raise_if_failed(uvz_mm)           # IkFailure: the stage writes nothing
     check = verify(ref, res, xyz_m)       # IkVerificationError on a model mismatch
@@ -62,7 +63,7 @@ The ``ik`` config group this module expects (``tattotronix.config.schema``)::
     class IkConfig:
         \"\"\"Whole-path IK (damped least squares on the 5x5 task Jacobian).\"\"\"
 
-        damping: float = 1e-3          # lambda, added to J J^T as is
+        dls_lambda: float = 1e-3       # the DLS lambda, added to J J^T as is
         max_iter: int = 200
         tol: float = 1e-6              # |e|, mixed m / unitless
         seed: list[float] = field(default_factory=lambda: [0.0, 0.6, -0.9, 0.0, -1.2])
@@ -80,19 +81,22 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypedDict
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.config.schema import IkConfig
 from tattotronix.errors import TattotronixError
+from tattotronix.io.jsontypes import JsonDict
 from tattotronix.kinematics.chain import Chain, Num, SoaState, Vec3
 from tattotronix.robot.description import RobotDescription
+from tattotronix.robot.loaders import STANDARD_GRAVITY, pinocchio_model
 
 __all__ = [
     "Conditioning",
     "IkFailure",
+    "IkOptions",
     "IkResult",
     "IkVerificationError",
     "PinocchioTip",
@@ -109,8 +113,19 @@ __all__ = [
 Array = NDArray[np.float64]
 Progress = Callable[[int, int], None]
 
-_DEFAULTS = IkConfig()  # conf/ik: the original's solver settings (reference section 3.2)
-DAMPING = _DEFAULTS.damping
+
+class IkOptions(TypedDict, total=False):
+    """Solver settings of :func:`solve_path` (besides the targets and the seed), as the
+    ``ik`` config group gives them (``tattotronix.pipeline.ik_settings``)."""
+
+    needle_axis: ArrayLike
+    dls_lambda: float
+    max_iter: int
+    tol: float
+    anchor_spacing_m: float
+
+_DEFAULTS = IkConfig()  # conf/ik: the original's settings (docs/original.md, "3.2 The solver")
+DLS_LAMBDA = _DEFAULTS.dls_lambda
 MAX_ITER = _DEFAULTS.max_iter
 TOL = _DEFAULTS.tol
 SEED = tuple(_DEFAULTS.seed)
@@ -178,7 +193,7 @@ class IkResult:
     at_limit: NDArray[np.bool_]
     solve_s: float
     joint_names: tuple[str, ...] = ()
-    stats: dict[str, Any] = field(default_factory=dict)
+    stats: JsonDict = field(default_factory=dict)
 
     @property
     def ok(self) -> bool:
@@ -200,15 +215,18 @@ class IkResult:
         """The largest residual."""
         return float(self.residual.max()) if self.points else 0.0
 
-    def summary(self) -> dict[str, Any]:
-        """Metrics: ``points``, ``converged_pct``, ``worst_residual``, ``solve_s``,
-        ``points_per_s``, ``failed``, ``iterations_mean``, ``iterations_max``."""
+    def timings(self) -> dict[str, float]:
+        """Wall time of the solve and its rate (never in a metrics file: they vary)."""
+        return {"solve_s": self.solve_s,
+                "points_per_s": self.points / self.solve_s if self.solve_s > 0 else 0.0}
+
+    def summary(self) -> JsonDict:
+        """Metrics: ``points``, ``converged_pct``, ``worst_residual``, ``failed``,
+        ``iterations_mean``, ``iterations_max`` (wall times are in :meth:`timings`)."""
         return {
             "points": self.points,
             "converged_pct": self.converged_pct,
             "worst_residual": self.worst_residual,
-            "solve_s": self.solve_s,
-            "points_per_s": self.points / self.solve_s if self.solve_s > 0 else 0.0,
             "failed": int((~self.converged).sum()),
             "iterations_mean": float(self.iterations.mean()) if self.points else 0.0,
             "iterations_max": int(self.iterations.max()) if self.points else 0,
@@ -270,7 +288,7 @@ def _basis(z: Vec3) -> tuple[Vec3, Vec3]:
          uy * inv if not isinstance(uy, float) else uy,
          uz * inv)
     v = (z1 * u[2] - z2 * u[1], z2 * u[0] - z0 * u[2], z0 * u[1] - z1 * u[0])
-    return u, v  # type: ignore[return-value]
+    return u, v
 
 
 def _dot(a: Sequence[Num], b: Sequence[Num]) -> Num:
@@ -308,12 +326,12 @@ def _full_residual(st: SoaState, p_des: Sequence[Num], z_des: Sequence[Num]) -> 
     return np.sqrt(np.asarray(_dot(d, d), dtype=float))
 
 
-def _dls_step(rows: list[list[Num]], e: list[Num], damping: float) -> list[Array]:
-    """``J^T (J J^T + damping I)^-1 e`` by an unrolled Cholesky factorisation."""
+def _dls_step(rows: list[list[Num]], e: list[Num], dls_lambda: float) -> list[Array]:
+    """``J^T (J J^T + dls_lambda I)^-1 e`` by an unrolled Cholesky factorisation."""
     m = len(rows)
     a = [[_dot(rows[i], rows[j]) for j in range(i + 1)] for i in range(m)]
     for i in range(m):
-        a[i][i] = a[i][i] + damping
+        a[i][i] = a[i][i] + dls_lambda
     low: list[list[Any]] = [[None] * m for _ in range(m)]
     inv_d: list[Any] = [None] * m
     for j in range(m):
@@ -368,7 +386,7 @@ def _as_entries(rows: Array | None, const: Sequence[float] | None) -> list[Num]:
 
 def _solve_lockstep(
     chain: Chain, p_des: Array, z_des_rows: Array | None, z_des_const: Sequence[float] | None,
-    seeds: Array, *, damping: float, max_iter: int, tol: float,
+    seeds: Array, *, dls_lambda: float, max_iter: int, tol: float,
     progress: Callable[[int], None] | None = None,
 ) -> _Batch:
     """Damped least squares on M points at once; a point stops once it has converged.
@@ -379,7 +397,7 @@ def _solve_lockstep(
         z_des_rows: (3, M) unit needle axes, or None with ``z_des_const`` for one axis.
         z_des_const: one unit needle axis for every point.
         seeds: (n, M) starting joint rows, rad.
-        damping, max_iter, tol: see :func:`solve_path`.
+        dls_lambda, max_iter, tol: see :func:`solve_path`.
         progress: called with the number of points finished so far.
     """
     n, m = seeds.shape
@@ -422,7 +440,7 @@ def _solve_lockstep(
             rows = [[_take(x, keep) for x in r] for r in rows]
             e = [_take(x, keep) for x in e]
         out.point_iterations += len(idx)
-        dq = _dls_step(rows, e, damping)
+        dq = _dls_step(rows, e, dls_lambda)
         raw = q + np.stack(dq)
         q = np.clip(raw, lo, hi)
         clamp = q != raw
@@ -510,7 +528,7 @@ def solve_path(
     *,
     needle_axis: ArrayLike = NEEDLE_AXIS,
     seed: ArrayLike = SEED,
-    damping: float = DAMPING,
+    dls_lambda: float = DLS_LAMBDA,
     max_iter: int = MAX_ITER,
     tol: float = TOL,
     anchor_spacing_m: float = ANCHOR_SPACING_M,
@@ -524,7 +542,8 @@ def solve_path(
         targets_m: (N, 3) tip targets in the arm frame, m, in path order.
         needle_axis: (3,) wanted tip +z for every point, or (N, 3) per point.
         seed: (n,) joint angles the first point starts from, rad.
-        damping: lambda added to ``J J^T`` (as is, not squared).
+        dls_lambda: the damped-least-squares lambda added to ``J J^T`` (as is, not
+            squared).
         max_iter: most iterations per solve.
         tol: convergence threshold on the task error ``|e|`` (m and unitless mixed).
         anchor_spacing_m: path length between anchors, m; steps at least this long (travel)
@@ -585,7 +604,7 @@ def solve_path(
 
             parts.append(_solve_lockstep(
                 chain, p_rows[:, k], None if z_rows is None else z_rows[:, k], z_const,
-                seeds[:, lo:lo + BLOCK], damping=damping, max_iter=max_iter, tol=tol,
+                seeds[:, lo:lo + BLOCK], dls_lambda=dls_lambda, max_iter=max_iter, tol=tol,
                 progress=sub))
         b = parts[0] if len(parts) == 1 else _Batch(
             q=np.concatenate([p.q for p in parts], axis=1),
@@ -657,7 +676,8 @@ def solve_path(
 # --- task Jacobian and conditioning --------------------------------------------------------
 
 def task_jacobian(chain: Chain, q: ArrayLike) -> Array:
-    """The 5 x n task Jacobian (section 3.1) at ``q`` ((N, n) rad): (N, 5, n).
+    """The 5 x n task Jacobian (docs/original.md, "3.1 The task Jacobian") at ``q`` ((N, n)
+    rad): (N, 5, n).
 
     Rows 0-2: the tip's linear Jacobian (m/rad); rows 3-4: the needle's tilt,
     ``u . (w_i x z)`` and ``v . (w_i x z)`` (1/rad), with ``u, v`` normal to the current
@@ -695,7 +715,7 @@ class Conditioning:
         """Index of the worst-conditioned point (largest ``cond``)."""
         return int(np.argmax(self.cond))
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JsonDict:
         """Ranges (``[min, max]``) of sigma_1, sigma_5, cond and manipulability, and the
         worst-conditioned point with its weakest direction."""
         def rng(a: Array) -> list[float]:
@@ -740,24 +760,25 @@ class PinocchioTip:
     """Pinocchio's model of the arm and the tip frame: the trusted reference.
 
     Attributes:
-        model: the ``pinocchio.Model`` (fixed base) built from the generated URDF.
+        model: the ``pinocchio.Model`` (fixed base) of the generated URDF: the process's
+            shared, read-only one (``pinocchio_model`` in tattotronix/robot/loaders.py).
         frame_id: the tip frame's id.
         tip_frame: its name.
         lower, upper: (n,) joint limits, rad (from the model).
     """
 
-    model: Any
+    model: Any  # Any: pinocchio.Model (pinocchio ships no type stubs)
     frame_id: int
     tip_frame: str
     lower: Array
     upper: Array
 
     @classmethod
-    def from_urdf_text(cls, urdf: str, tip_frame: str) -> PinocchioTip:
-        """From URDF text (``tattotronix.robot.urdf.to_urdf``)."""
-        import pinocchio as pin
-
-        model = pin.buildModelFromXML(urdf)
+    def from_urdf_text(cls, urdf: str, tip_frame: str, *,
+                       gravity: float = STANDARD_GRAVITY) -> PinocchioTip:
+        """From URDF text (``tattotronix.robot.urdf.to_urdf``). ``gravity`` (m/s^2) only
+        picks which shared model to use: the kinematics do not depend on it."""
+        model = pinocchio_model(urdf, gravity)
         if not model.existFrame(tip_frame):
             raise TattotronixError(f"the URDF has no frame {tip_frame!r} for the IK tip")
         return cls(model=model, frame_id=int(model.getFrameId(tip_frame)), tip_frame=tip_frame,
@@ -765,16 +786,18 @@ class PinocchioTip:
                    upper=np.array(model.upperPositionLimit, dtype=float))
 
     @classmethod
-    def from_urdf(cls, path: str | os.PathLike[str], tip_frame: str) -> PinocchioTip:
+    def from_urdf(cls, path: str | os.PathLike[str], tip_frame: str, *,
+                  gravity: float = STANDARD_GRAVITY) -> PinocchioTip:
         """From a URDF file (the robot stage's ``data/robot/tattotronix.urdf``)."""
-        return cls.from_urdf_text(Path(path).read_text(encoding="utf-8"), tip_frame)
+        return cls.from_urdf_text(Path(path).read_text(encoding="utf-8"), tip_frame,
+                                  gravity=gravity)
 
     @classmethod
     def from_description(cls, desc: RobotDescription, tip: str | None = None) -> PinocchioTip:
         """Generate the URDF of ``desc`` and load it."""
         from tattotronix.robot.urdf import to_urdf
 
-        return cls.from_urdf_text(to_urdf(desc), tip or desc.tip_frame)
+        return cls.from_urdf_text(to_urdf(desc), tip or desc.tip_frame, gravity=desc.gravity)
 
     def fk(self, q: ArrayLike) -> tuple[Array, Array]:
         """Tip position (N, 3) m and tip +z axis (N, 3) at ``q`` ((N, n) rad), one by one."""
@@ -804,10 +827,10 @@ def solve_point(
     *,
     needle_axis: ArrayLike = NEEDLE_AXIS,
     q0: ArrayLike = SEED,
-    damping: float = DAMPING,
+    dls_lambda: float = DLS_LAMBDA,
     max_iter: int = MAX_ITER,
     tol: float = TOL,
-    data: Any = None,
+    data: Any = None,  # Any: a pinocchio.Data (pinocchio ships no type stubs)
 ) -> PointResult:
     """The single-point reference solver, on Pinocchio's frame Jacobian.
 
@@ -816,7 +839,7 @@ def solve_point(
         target_m: (3,) tip target in the arm frame, m.
         needle_axis: (3,) wanted tip +z (normalised here).
         q0: (n,) starting joint angles, rad.
-        damping: lambda added to ``J J^T``.
+        dls_lambda: the damped-least-squares lambda added to ``J J^T``.
         max_iter: most iterations.
         tol: convergence threshold on ``|e|``.
         data: a ``pinocchio.Data`` to reuse (one is made when None).
@@ -863,7 +886,7 @@ def solve_point(
         task[:3] = jac[:3]
         task[3:] = tilt @ jac[3:]
         a = task @ task.T
-        a[diag, diag] += damping
+        a[diag, diag] += dls_lambda
         y = dposv(a, e)[1]
         raw = q + task.T @ y
         q = np.minimum(np.maximum(raw, lo), hi)
@@ -882,7 +905,7 @@ def solve_path_sequential(
     *,
     needle_axis: ArrayLike = NEEDLE_AXIS,
     seed: ArrayLike = SEED,
-    damping: float = DAMPING,
+    dls_lambda: float = DLS_LAMBDA,
     max_iter: int = MAX_ITER,
     tol: float = TOL,
     progress: Progress | None = None,
@@ -903,7 +926,7 @@ def solve_path_sequential(
     data = ref.model.createData()
     qk = np.asarray(seed, dtype=float)
     for k in range(n_pts):
-        r = solve_point(ref, x[k], needle_axis=zs[k], q0=qk, damping=damping,
+        r = solve_point(ref, x[k], needle_axis=zs[k], q0=qk, dls_lambda=dls_lambda,
                         max_iter=max_iter, tol=tol, data=data)
         q[k], conv[k], res[k], iters[k], reason[k], at_limit[k] = (
             r.q, r.converged, r.residual, r.iterations, r.reason, r.at_limit)
@@ -934,7 +957,7 @@ class Verification:
     worst_index: int
     ok: bool
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JsonDict:
         """For the metrics file."""
         return {"verified_points": self.checked,
                 "verify_max_position_error_m": self.max_position_error_m,

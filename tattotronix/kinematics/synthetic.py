@@ -4,7 +4,8 @@ Strokes are polylines in panel millimetres (u along +x, v along +y from the pane
 :func:`stroke_path` turns them into a toolpath like the toolpath stage's
 (``xyz_m``, ``uvz_mm``, ``kind``): each stroke is resampled at ``step_mm`` and entered by
 a plunge (clearance, approach start, surface depth) and left by a retract to clearance,
-as in reference section 2.6, with the same panel-to-arm mapping (section 2.7).
+as in docs/original.md, "2.6 The 3-D path", with the same panel-to-arm mapping ("2.7 Panel
+to arm frame, timing").
 """
 
 from __future__ import annotations

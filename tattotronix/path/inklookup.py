@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -96,8 +98,9 @@ def lines_on_ink(
 
 
 def _pieces_on_ink(
-    mask: InkMask, a: NDArray, b: NDArray, ua: NDArray, ub: NDArray, wa: NDArray, wb: NDArray,
-    fu: NDArray, nu: NDArray, fw: NDArray, nw: NDArray, ku: int, kw: int,
+    mask: InkMask, a: NDArray[Any], b: NDArray[Any], ua: NDArray[Any], ub: NDArray[Any],
+    wa: NDArray[Any], wb: NDArray[Any], fu: NDArray[Any], nu: NDArray[Any], fw: NDArray[Any],
+    nw: NDArray[Any], ku: int, kw: int,
 ) -> NDArray[np.bool_]:
     """:func:`lines_on_ink` for one block of lines with at most ku / kw edge crossings."""
     with np.errstate(divide="ignore", invalid="ignore"):

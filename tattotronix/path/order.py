@@ -40,6 +40,7 @@ __all__ = ["Order", "OrderResult", "optimise_order", "original_order"]
 
 _GAIN_TOL_S = 1e-9  # a move must save more than this to count
 _BLOCK_ROWS = 256  # 2-opt rows scored at once (bounds memory to ~ rows x n)
+MAX_PASSES = 200  # 2-opt passes in all: a budget of work, never of wall time
 
 
 @dataclass(frozen=True)
@@ -108,13 +109,15 @@ def _endpoints(drawing: Drawing, seam: NDArray[np.intp]) -> NDArray[np.float64]:
     return pts
 
 
-def _ends(seq: NDArray[np.intp], rev: NDArray[np.bool_]) -> tuple[NDArray, NDArray]:
+def _ends(seq: NDArray[np.intp], rev: NDArray[np.bool_]
+          ) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
     """Entry and exit endpoint ids per position."""
     entry = 2 * seq + rev
     return entry, 2 * seq + 1 - rev
 
 
-def _transitions(costs: TransitionCosts, seq: NDArray, rev: NDArray) -> NDArray[np.float64]:
+def _transitions(costs: TransitionCosts, seq: NDArray[np.intp], rev: NDArray[np.bool_]
+                 ) -> NDArray[np.float64]:
     entry, exit_ = _ends(seq, rev)
     return costs.between(exit_[:-1], entry[1:])
 
@@ -180,9 +183,10 @@ def _greedy(
 
 def _two_opt(
     costs: TransitionCosts, seq: NDArray[np.intp], rev: NDArray[np.bool_], prec: _Precedence,
-    deadline: float,
+    max_passes: int,
 ) -> tuple[NDArray[np.intp], NDArray[np.bool_], int, int]:
-    """Improve by reversing runs of strokes until no move helps or time is up."""
+    """Improve by reversing runs of strokes until no move helps or ``max_passes`` passes
+    have run (a work budget, not a time budget: the result never depends on the machine)."""
     seq, rev = seq.copy(), rev.copy()
     n, m = len(seq), len(costs.pts)
     passes = moves = 0
@@ -190,7 +194,7 @@ def _two_opt(
         return seq, rev, passes, moves
     src, dst, corr = costs.corrections()
     jj = np.arange(n)
-    while time.perf_counter() < deadline:
+    while passes < max_passes:
         passes += 1
         entry, exit_ = _ends(seq, rev)
         t = costs.between(exit_[:-1], entry[1:])
@@ -277,7 +281,7 @@ def _optimise_seams(
 
 
 def optimise_order(
-    drawing: Drawing, mask: InkMask, params: ToolpathParams, time_budget_s: float = 5.0,
+    drawing: Drawing, mask: InkMask, params: ToolpathParams, max_passes: int = MAX_PASSES,
     rounds: int = 3,
 ) -> OrderResult:
     """Order the strokes to cut the time between them (see the module docstring).
@@ -286,9 +290,9 @@ def optimise_order(
         drawing: the strokes.
         mask: the ink mask (drags must stay on ink).
         params: feeds, lift geometry, ``lift_s`` and ``outlines_first``.
-        time_budget_s: wall-time budget, s: the first greedy tour always runs; more
-            greedy starts (while a quarter of it lasts), 2-opt passes and seam rounds stop
-            when it is spent.
+        max_passes: at most this many 2-opt passes in all (a budget of work, so the same
+            drawing gives the same order on any machine; the built-in emblem converges in
+            far fewer).
         rounds: at most this many rounds of 2-opt then seams.
 
     Returns:
@@ -312,25 +316,22 @@ def optimise_order(
     starts = {int(ids[np.argmin(p[:, 0])]), int(ids[np.argmax(p[:, 0])]),
               int(ids[np.argmin(p[:, 1])]), int(ids[np.argmax(p[:, 1])])}
     tours, tour_costs = [], []
-    for first in sorted(starts):  # at least one; more while a quarter of the budget lasts
+    for first in sorted(starts):  # at most four: the extremes in u and v
         tours.append(_greedy(costs, prec, first))
         tour_costs.append(float(_transitions(costs, *tours[-1]).sum()))
-        if time.perf_counter() - t0 > time_budget_s / 4:
-            break
     seq, rev = tours[int(np.argmin(tour_costs))]
     greedy_cost = min(tour_costs)
 
-    deadline = t0 + time_budget_s
     passes = moves = 0
     for _ in range(rounds):
-        seq, rev, p_, m_ = _two_opt(costs, seq, rev, prec, deadline)
+        seq, rev, p_, m_ = _two_opt(costs, seq, rev, prec, max_passes - passes)
         passes, moves = passes + p_, moves + m_
         new_seam = _optimise_seams(drawing, seq, rev, seam, mask, params, costs)
         changed = not np.array_equal(new_seam, seam)
         seam = new_seam
         if changed:
             costs = TransitionCosts(_endpoints(drawing, seam), mask, params)
-        if not changed or time.perf_counter() > deadline:
+        if not changed or passes >= max_passes:
             break
     cost = float(_transitions(costs, seq, rev).sum())
     ours = Order(seq, rev, seam[seq])

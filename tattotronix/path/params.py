@@ -10,8 +10,8 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
+from tattotronix.config.schema import MaskConfig, PanelConfig, ToolpathConfig
 from tattotronix.errors import TattotronixError
 
 __all__ = ["ToolpathParams"]
@@ -82,13 +82,14 @@ class ToolpathParams:
             raise TattotronixError(f"robot.panel.size must be > 0 (got {self.panel_size_mm} mm)")
 
     @classmethod
-    def from_config(cls, toolpath: Any, mask: Any, panel: Any) -> ToolpathParams:
-        """Build from the ``toolpath`` and ``mask`` config groups and ``robot.panel``.
+    def from_config(cls, toolpath: ToolpathConfig, mask: MaskConfig,
+                    panel: PanelConfig) -> ToolpathParams:
+        """Build from the ``toolpath`` and ``mask`` settings and ``robot.panel``.
 
         Args:
-            toolpath: a ``ToolpathConfig`` (or a DictConfig with its keys).
-            mask: a ``MaskConfig`` (only ``min_region_mm2`` is read).
-            panel: a ``PanelConfig`` (``size`` in metres; only width and height are read).
+            toolpath: the ``toolpath`` settings.
+            mask: the ``mask`` settings (only ``min_region_mm2`` is read).
+            panel: ``robot.panel`` (only the width and height are read).
         """
         return cls(
             pitch_mm=float(toolpath.pitch_mm),
@@ -102,7 +103,7 @@ class ToolpathParams:
             lift_s=float(toolpath.lift_s),
             outlines_first=bool(toolpath.outlines_first),
             min_region_mm2=float(mask.min_region_mm2),
-            panel_size_mm=(float(panel.size[0]) * 1e3, float(panel.size[1]) * 1e3),
+            panel_size_mm=panel.size_mm,
             panel_origin_m=(
                 float(toolpath.panel_origin[0]),
                 float(toolpath.panel_origin[1]),

@@ -1,7 +1,8 @@
 """Ordered strokes to the 3-D needle path: lifts, plunges with a slow approach, drags.
 
 Points are (u, v, z) in panel millimetres, z relative to the surface (negative: in the
-work), each with a kind: 0 travel, 1 mark, 2 approach (reference section 2.6).
+work), each with a kind: 0 travel, 1 mark, 2 approach (docs/original.md, "2.6 The 3-D
+path"; ours: docs/toolpath.md, "The 3-D path").
 
 * Plunge at a stroke's first point p: (p, +clearance) travel, (p, -plunge + approach)
   travel, (p, -plunge) approach.
@@ -80,7 +81,7 @@ def build_path(
     kind: list[NDArray[np.int8]] = []
     idx: list[NDArray[np.int32]] = []
 
-    def put(p: NDArray[np.float64], zz: float | NDArray, k: int, s: int) -> None:
+    def put(p: NDArray[np.float64], zz: float | NDArray[np.float64], k: int, s: int) -> None:
         p = np.atleast_2d(p)
         xy.append(p)
         z.append(np.broadcast_to(np.asarray(zz, dtype=np.float64), (len(p),)))

@@ -10,14 +10,14 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.art.grid import InkMask
 from tattotronix.errors import TattotronixError
-from tattotronix.path.order import Order, OrderResult, optimise_order, original_order
+from tattotronix.io.jsontypes import JsonDict
+from tattotronix.path.order import MAX_PASSES, Order, OrderResult, optimise_order, original_order
 from tattotronix.path.panel import check_fits, to_arm
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.path3d import Path3D, build_path
@@ -53,7 +53,7 @@ class Toolpath:
     original: PathMetrics
     ordering: OrderResult
 
-    def metrics_dict(self) -> dict[str, Any]:
+    def metrics_dict(self) -> JsonDict:
         """The metrics file: our figures, the original ordering's, and the ratios."""
         ours, orig = self.metrics, self.original
 
@@ -78,7 +78,6 @@ class Toolpath:
                 "time_saved_s": round(orig.time_s - ours.time_s, 6),
             },
             "ordering": {
-                "elapsed_s": round(self.ordering.elapsed_s, 4),
                 "between_strokes_s": round(self.ordering.cost_s, 6),
                 "between_strokes_greedy_s": round(self.ordering.greedy_cost_s, 6),
                 "between_strokes_original_s": round(self.ordering.original_cost_s, 6),
@@ -90,13 +89,14 @@ class Toolpath:
         }
 
 
-def plan_toolpath(mask: InkMask, params: ToolpathParams, time_budget_s: float = 5.0) -> Toolpath:
+def plan_toolpath(mask: InkMask, params: ToolpathParams, max_passes: int = MAX_PASSES
+                  ) -> Toolpath:
     """Plan the needle path for an ink mask.
 
     Args:
         mask: the ink mask.
         params: the toolpath parameters.
-        time_budget_s: wall-time budget of the ordering search, s.
+        max_passes: the ordering search's budget of 2-opt passes (work, not time).
 
     Returns:
         The toolpath, with the original ordering's figures beside ours.
@@ -111,7 +111,7 @@ def plan_toolpath(mask: InkMask, params: ToolpathParams, time_budget_s: float = 
             f"the mask has no ink region of at least {params.min_region_mm2} mm^2 "
             "(mask.min_region_mm2): nothing to draw; check the artwork or the mask method"
         )
-    result = optimise_order(drawing, mask, params, time_budget_s=time_budget_s)
+    result = optimise_order(drawing, mask, params, max_passes=max_passes)
     path = build_path(result.order.points(drawing, params.step_mm), mask, params)
     baseline = build_path(
         original_order(drawing).points(drawing, params.step_mm), mask, params, math.inf

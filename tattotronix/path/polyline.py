@@ -7,7 +7,8 @@ from numpy.typing import NDArray
 
 __all__ = ["close", "length_mm", "resample", "rotate_closed", "smooth_closed", "stations"]
 
-SMOOTH_PASSES = 2  # passes of the circular [1, 2, 1] / 4 kernel (reference section 2.3)
+#: passes of the circular [1, 2, 1] / 4 kernel (docs/original.md, "2.3 Outline tracing")
+SMOOTH_PASSES = 2
 SMOOTH_MIN_POINTS = 5  # shorter loops are left as traced
 _EPS_MM = 1e-9  # points closer than this are the same point
 

@@ -1,8 +1,8 @@
 """From an ink mask to strokes: outlines (outer and holes) and hatch fill, in mm.
 
-The strokes come out in the original's order (reference section 2.2 to 2.4): regions left
-to right by the mean x of their pixels; within a region the outer outline, the hole
-outlines, then the fill rows top down, alternating direction.
+The strokes come out in the original's order (docs/original.md, "2.2 Regions" to "2.4
+Hatch fill"): regions left to right by the mean x of their pixels; within a region the
+outer outline, the hole outlines, then the fill rows top down, alternating direction.
 """
 
 from __future__ import annotations

@@ -1,4 +1,5 @@
-"""Planned timing and the path figures, as the original timed it (reference section 2.7).
+"""Planned timing and the path figures, as the original timed it (docs/original.md, "2.7
+Panel to arm frame, timing").
 
 A segment is *marking* when both its ends are mark points, *approach* when either end is an
 approach point, and travel otherwise. Marking and approach run at the marking feed, travel

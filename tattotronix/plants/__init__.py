@@ -8,9 +8,7 @@ friction unless ``plant.damping`` is set, and the panel never resists the needle
 
 from __future__ import annotations
 
-from tattotronix.plants.base import Plant, PlantSettings, make_plant
+from tattotronix.plants.base import Plant, PlantSettings
+from tattotronix.plants.factory import BACKENDS, make_plant
 
 __all__ = ["BACKENDS", "Plant", "PlantSettings", "make_plant"]
-
-#: the simulated backends (``draw.py backend=...``)
-BACKENDS = ("mujoco", "pybullet", "model")

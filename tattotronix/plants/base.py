@@ -1,4 +1,4 @@
-"""The plant interface and the factory that builds a backend from the generated models."""
+"""The plant interface every backend implements, and the settings every backend is told."""
 
 from __future__ import annotations
 
@@ -7,23 +7,23 @@ import sys
 from abc import ABC, abstractmethod
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from types import TracebackType
-from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from tattotronix.config.schema import PlantConfig
 from tattotronix.errors import TattotronixError
 
-__all__ = ["Plant", "PlantSettings", "has_display", "make_plant"]
+__all__ = ["Plant", "PlantSettings", "has_display"]
 
 Array = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
 class PlantSettings:
-    """What every backend is told (the ``plant`` config group, SI units).
+    """What every backend is told (the ``plant`` settings, SI units): build it with
+    :meth:`from_config`; it holds no defaults of its own (they are ``PlantConfig``'s).
 
     Attributes:
         dt_s: integration step, s.
@@ -34,16 +34,16 @@ class PlantSettings:
         tip_frame: the tip's frame name (``tattoo_tcp``).
     """
 
-    dt_s: float = 0.001
-    damping: float = 0.0
-    joint_limits: bool = False
-    contacts: bool = False
-    gravity: float = 9.80665
-    tip_frame: str = "tattoo_tcp"
+    dt_s: float
+    damping: float
+    joint_limits: bool
+    contacts: bool
+    gravity: float
+    tip_frame: str
 
     @classmethod
-    def from_config(cls, plant: Any, gravity: float, tip_frame: str) -> PlantSettings:
-        """From the ``plant`` config group and the robot description's gravity and tip."""
+    def from_config(cls, plant: PlantConfig, gravity: float, tip_frame: str) -> PlantSettings:
+        """From the ``plant`` settings and the robot description's gravity and tip."""
         s = cls(dt_s=float(plant.dt_s), damping=float(plant.damping),
                 joint_limits=bool(plant.joint_limits), contacts=bool(plant.contacts),
                 gravity=float(gravity), tip_frame=tip_frame)
@@ -122,46 +122,3 @@ def has_display() -> bool:
     if sys.platform in ("darwin", "win32"):
         return True
     return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
-
-
-def make_plant(backend: str, settings: PlantSettings, *, urdf: Path, mjcf: Path,
-               joint_names: Sequence[str], lower: ArrayLike, upper: ArrayLike,
-               viewer: bool = False) -> Plant:
-    """Build a plant from the generated models.
-
-    Args:
-        backend: ``model``, ``mujoco`` or ``pybullet``.
-        settings: the plant settings.
-        urdf, mjcf: the generated models (``data/robot/<name>.urdf`` / ``.xml``).
-        joint_names: the joints, base outward (checked against each model).
-        lower, upper: joint limits, rad (the model plant's clamp).
-        viewer: open the engine's viewer (needs a display; MuJoCo and PyBullet).
-
-    Raises:
-        TattotronixError: an unknown backend, or a setting the backend cannot honour.
-    """
-    from tattotronix.plants import BACKENDS
-
-    name = str(getattr(backend, "name", backend))
-    if name not in BACKENDS:
-        raise TattotronixError(f"unknown backend '{name}': use one of {', '.join(BACKENDS)} "
-                               "(the real arm is backend=arm)")
-    plant: Plant
-    if name == "model":
-        from tattotronix.plants.model import ModelPlant
-
-        plant = ModelPlant(urdf, settings, lower=lower, upper=upper)
-    elif name == "mujoco":
-        from tattotronix.plants.mujoco_plant import MujocoPlant
-
-        plant = MujocoPlant(mjcf, settings, viewer=viewer)
-    else:
-        from tattotronix.plants.pybullet_plant import PybulletPlant
-
-        plant = PybulletPlant(urdf, settings, viewer=viewer)
-    got = tuple(getattr(plant, "joint_names", ()))
-    if got != tuple(joint_names):
-        plant.close()
-        raise TattotronixError(f"the {name} model has joints {got}, the description "
-                               f"{tuple(joint_names)}: re-run the 'robot' stage")
-    return plant

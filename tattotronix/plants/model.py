@@ -32,7 +32,7 @@ class ModelPlant(Plant):
             raise TattotronixError("the model plant has no contact model: set "
                                    "plant.contacts=false or use backend=mujoco|pybullet")
         self._aba = pin.aba
-        self.model = load_pinocchio(urdf, settings.gravity)
+        self.model = load_pinocchio(urdf, settings.gravity)  # shared, read-only
         self.data = self.model.createData()
         self.joint_names = tuple(self.model.names[1:])
         super().__init__(settings, int(self.model.nv))

@@ -1,1 +1,2 @@
-"""Reports on the pipeline: figures, the drawing animation, and certification of the docs."""
+"""Reports on the pipeline: figures, the drawing animation, the robot stage's report, and
+certification of the docs."""

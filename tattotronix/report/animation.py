@@ -1,4 +1,5 @@
-"""The drawing animation (reference ``original.md`` Appendix A, ``render_drawing.py``).
+"""The drawing animation (docs/toolpath.md, "The drawing"; the original's: docs/original.md,
+"The drawing animation").
 
 Left, the arm in elevation (x-z; every frame origin by Pinocchio FK, the panel and the
 bench); right, the panel face-on with the ink so far and the current tip; a title with the

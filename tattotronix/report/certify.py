@@ -91,6 +91,8 @@ from urllib.parse import unquote
 
 import yaml
 
+from tattotronix.io.jsontypes import JsonDict
+
 __all__ = [
     "EXEMPTIONS_FILE",
     "METRICS_DIR",
@@ -251,7 +253,7 @@ class CertifyReport:
     def ok(self) -> bool:
         return not self.failures
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JsonDict:
         """Counts for the metrics JSON (nothing that changes between identical runs)."""
         per_doc: dict[str, dict[str, int]] = {
             d: {"figures": 0, "traced": 0, "exempted": 0, "links": 0, "failures": 0}

@@ -1,5 +1,5 @@
 """The pipeline's figures: the chain, joint trajectories, torques, step responses, tracking
-and the mass model (reference ``original.md`` Appendix A, ``figures.py``).
+and the mass model (README, "Figures"; the original's: docs/original.md, "The figures").
 
 Each ``*_figure`` function takes plain data (arrays, small dataclasses) and the PNG to
 write; none reads a file. The data come from the library, never re-implemented here:
@@ -20,18 +20,24 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from tattotronix.config.schema import Config, ControllerConfig, IkConfig, PlantConfig
 from tattotronix.errors import TattotronixError
+from tattotronix.io.artifacts import RunLogRecord, TrajectoryRecord
+from tattotronix.io.jsontypes import JsonDict, JsonValue
 from tattotronix.io.outputs import Outputs
 from tattotronix.path.kinds import MARK
+from tattotronix.plotting import legend_proxy, pyplot
 from tattotronix.robot.description import RobotDescription
-from tattotronix.studies.kinematics import _proxy, _pyplot
+
+if TYPE_CHECKING:
+    from tattotronix.collision.check import TrajectoryClearance
 
 __all__ = [
     "DPI",
@@ -45,7 +51,6 @@ __all__ = [
     "linear_step",
     "mass_figure",
     "panel_pose",
-    "run_log_path",
     "step_set",
     "steps_figure",
     "torques_figure",
@@ -56,6 +61,7 @@ __all__ = [
 log = logging.getLogger("tattotronix.figures")
 
 Array = NDArray[np.float64]
+_NEEDLE_AXIS = tuple(IkConfig().needle_axis)  # the schema's default (needle down)
 
 #: Resolution of every figure, dots per inch.
 DPI = 130
@@ -83,7 +89,7 @@ def _colour(i: int) -> str:
 
 
 def _new_figure(kind: str) -> tuple[Any, Any]:
-    plt = _pyplot()
+    plt = pyplot()
     return plt, plt.figure(figsize=FIGSIZE[kind], dpi=DPI)
 
 
@@ -194,7 +200,7 @@ def arm_poses(desc: RobotDescription, urdf: Path, q: ArrayLike) -> ArmPoses:
 
 
 def panel_pose(desc: RobotDescription, urdf: Path, target_m: ArrayLike,
-               seed: ArrayLike, needle_axis: ArrayLike = (0.0, 0.0, -1.0)) -> Array:
+               seed: ArrayLike, needle_axis: ArrayLike = _NEEDLE_AXIS) -> Array:
     """A drawing pose: the tip at ``target_m`` with the needle along ``needle_axis``
     (Pinocchio's single-point solver).
 
@@ -254,8 +260,8 @@ def chain_figure(poses: ArmPoses, labels: Sequence[str], panel_centre_m: ArrayLi
             ax.plot(o[chain, i], o[chain, j], ls, color=colour, lw=2.4 if k == 0 else 1.8,
                     marker="o", ms=4.5, mfc="white", mec=colour, zorder=3)
             ax.plot(tcp[i], tcp[j], "v" if k else "D", color=colour, ms=7, zorder=4)
-        handles.append(_proxy("o", colour, labels[k] if k < len(labels) else f"pose {k}",
-                              ls=ls, lw=2))
+        handles.append(legend_proxy("o", colour, labels[k] if k < len(labels) else f"pose {k}",
+                                    ls=ls, lw=2))
         # TCP coordinates, mm (elevation: left of the tip; plan: below it)
         txt = f"{poses.names[poses.tip]}\n({tcp[0]:.2f}, {tcp[1]:.2f}, {tcp[2]:.2f}) mm"
         box = {"boxstyle": "round", "fc": "white", "ec": colour, "alpha": 0.9}
@@ -316,15 +322,15 @@ def chain_figure(poses: ArmPoses, labels: Sequence[str], panel_centre_m: ArrayLi
         ax.plot(origin[i], origin[j], "P", color="#c92a2a", ms=8, mec="white", zorder=6)
     ax_pl.plot(0, 0, "+", color="black", ms=12, mew=1.5)
     handles += [
-        _proxy("", "#e03131", "frame x axis", ls="-", lw=2),
-        _proxy("", "#2f9e44", "frame y axis", ls="-", lw=2),
-        _proxy("", "#1c7ed6", "frame z axis", ls="-", lw=2),
-        _proxy("", "#862e9c", "joint axis (circle: normal to view)", ls="-.", lw=1.2),
-        _proxy("s", "#d9c7a5", f"panel {size[0]:.0f} x {size[1]:.0f} x {size[2]:.0f} mm",
-               ms=9, mec="#8a7f70"),
-        _proxy("P", "#c92a2a", f"panel origin ({origin[0]:.0f}, {origin[1]:.0f}, "
-                               f"{origin[2]:.0f}) mm", ms=8),
-        _proxy("s", "#e9ecef", "bench (top at z = 0)", ms=9, mec="#495057"),
+        legend_proxy("", "#e03131", "frame x axis", ls="-", lw=2),
+        legend_proxy("", "#2f9e44", "frame y axis", ls="-", lw=2),
+        legend_proxy("", "#1c7ed6", "frame z axis", ls="-", lw=2),
+        legend_proxy("", "#862e9c", "joint axis (circle: normal to view)", ls="-.", lw=1.2),
+        legend_proxy("s", "#d9c7a5", f"panel {size[0]:.0f} x {size[1]:.0f} x {size[2]:.0f} mm",
+                     ms=9, mec="#8a7f70"),
+        legend_proxy("P", "#c92a2a", f"panel origin ({origin[0]:.0f}, {origin[1]:.0f}, "
+                                     f"{origin[2]:.0f}) mm", ms=8),
+        legend_proxy("s", "#e9ecef", "bench (top at z = 0)", ms=9, mec="#495057"),
     ]
     zhi = float(allo[:, 2].max()) + 60
     ax_el.set_xlim(xlo, xhi)
@@ -416,10 +422,11 @@ def joints_figure(t: ArrayLike, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, kin
     axes[0, 0].set_xlim(float(tt[0]), float(tt[-1]))
     axes[0, 1].set_xlim(z0, z1)
     axes[0, 1].set_title(f"zoom: {z0:.1f} to {z1:.1f} s (grey band on the left)", fontsize=9)
-    handles = [_proxy("", _colour(j), name, ls="-", lw=2) for j, name in enumerate(joint_names)]
-    handles += [_proxy("", "#c92a2a", "limit (position, velocity, trajectory acceleration)",
-                       ls="--", lw=1),
-                _proxy("s", MARK_SHADE, "needle marking", ms=10)]
+    handles = [legend_proxy("", _colour(j), name, ls="-", lw=2)
+               for j, name in enumerate(joint_names)]
+    handles += [legend_proxy("", "#c92a2a", "limit (position, velocity, trajectory acceleration)",
+                             ls="--", lw=1),
+                legend_proxy("s", MARK_SHADE, "needle marking", ms=10)]
     fig.legend(handles=handles, loc="upper center", ncol=len(handles), fontsize=8,
                bbox_to_anchor=(0.5, 0.955), frameon=False)
     peak_v = np.abs(series[1]).max(axis=0)
@@ -484,13 +491,13 @@ def torques_figure(t_plan: ArrayLike, gravity_nm: ArrayLike, t_run: ArrayLike,
     axes[-1].set_xlabel("time (s)")
     axes[0].set_xlim(float(min(tp[0], tr[0] if len(tr) else tp[0])),
                      float(max(tp[-1], tr[-1] if len(tr) else tp[-1])))
-    handles = [_proxy("", "black", "gravity G(q) along the planned trajectory (Pinocchio)",
-                      ls="-", lw=1),
-               _proxy("", "#1971c2", f"applied torque in the simulated run ({backend}; "
-                                     "joint colour)", ls="-", lw=1),
-               _proxy("o", "none", "peak |G|", mec="black"),
-               _proxy("v", "black", "peak |tau|"),
-               _proxy("s", MARK_SHADE, "needle marking", ms=10)]
+    handles = [legend_proxy("", "black", "gravity G(q) along the planned trajectory (Pinocchio)",
+                            ls="-", lw=1),
+               legend_proxy("", "#1971c2", f"applied torque in the simulated run ({backend}; "
+                                           "joint colour)", ls="-", lw=1),
+               legend_proxy("o", "none", "peak |G|", mec="black"),
+               legend_proxy("v", "black", "peak |tau|"),
+               legend_proxy("s", MARK_SHADE, "needle marking", ms=10)]
     fig.legend(handles=handles, loc="upper center", ncol=len(handles), fontsize=8,
                bbox_to_anchor=(0.47, 0.955), frameon=False)
     lim = f"; torque limit {torque_limit_nm:g} N m, far off scale" if torque_limit_nm else ""
@@ -554,7 +561,7 @@ class StepSet:
         return {"pid": "PI-D", "pid_g": "PI-D + g", "pid_g_v": "PID + g + v",
                 "computed_torque": "computed torque"}.get(self.structure, self.structure)
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JsonDict:
         """JSON-ready overshoots per joint."""
         return {"structure": self.structure, "wn": self.wn, "step_deg": math.degrees(
             self.step_rad), "single_axis_pct": self.single_axis_pct,
@@ -645,7 +652,9 @@ def step_set(desc: RobotDescription, urdf: Path, tune_q: ArrayLike, wn: float,
     period = 1.0 / rate_hz
     ticks = max(int(math.ceil(periods / wn / period)), 20) + 2
     tk = period * np.arange(ticks, dtype=np.float64)
-    settings = PlantSettings(dt_s=dt_s, gravity=desc.gravity, tip_frame=desc.tip_frame)
+    # the default plant (no friction, no limits, no contacts) at the given step
+    settings = PlantSettings.from_config(replace(PlantConfig(), dt_s=dt_s), desc.gravity,
+                                         desc.tip_frame)
     resp = np.empty((n, ticks - 1))
     sat = np.zeros(n, bool)
     peak = np.zeros(n)
@@ -734,11 +743,11 @@ def steps_figure(sets: Sequence[StepSet], path: Path, title: str = "") -> Path:
         first.set_xlim(0, float(max(s.t[-1] * s.wn for s in sets)))
         hi = max(float(np.nanmax(np.r_[s.response.ravel(), s.linear.ravel()])) for s in sets)
         first.set_ylim(-0.1, max(1.5, min(hi * 1.05, 4.0)))
-    handles = [_proxy("", _colour(j), name, ls="-", lw=2)
+    handles = [legend_proxy("", _colour(j), name, ls="-", lw=2)
                for j, name in enumerate(sets[0].joint_names)] if sets else []
-    handles += [_proxy("", "#495057", "simulated, model plant (solid)", ls="-", lw=1.4),
-                _proxy("", "#495057", "coupled linear loop, M(q0) (dotted)", ls=":", lw=1.4),
-                _proxy("", "black", "single axis, python-control (dashed)", ls="--", lw=2)]
+    handles += [legend_proxy("", "#495057", "simulated, model plant (solid)", ls="-", lw=1.4),
+                legend_proxy("", "#495057", "coupled linear loop, M(q0) (dotted)", ls=":", lw=1.4),
+                legend_proxy("", "black", "single axis, python-control (dashed)", ls="--", lw=2)]
     fig.legend(handles=handles, loc="upper center", ncol=len(handles), fontsize=8,
                bbox_to_anchor=(0.5, 0.95), frameon=False)
     q0 = ", ".join(f"{v:.3f}" for v in sets[0].tune_q) if sets else ""
@@ -856,7 +865,7 @@ def tracking_figure(t: ArrayLike, error_m: ArrayLike, down: ArrayLike, settled: 
 
 # --- 6. the mass model ---------------------------------------------------------------------
 
-def mass_figure(report: Mapping[str, Any], path: Path, poses: ArmPoses | None = None,
+def mass_figure(report: Mapping[str, JsonValue], path: Path, poses: ArmPoses | None = None,
                 title: str = "the mass model") -> Path:
     """Per link: the printed shell and the servos (stacked bars, g) and the pen; the CoM of
     each link placed on the zero-pose arm (elevation, marker area ~ mass), or, without
@@ -869,8 +878,8 @@ def mass_figure(report: Mapping[str, Any], path: Path, poses: ArmPoses | None = 
         poses: the frames at the zero pose (first configuration used).
         title: first title words.
     """
-    links = report["links"]
-    totals = report.get("totals", {})
+    links = cast("Mapping[str, Any]", report["links"])  # JSON values, read by key
+    totals = cast("Mapping[str, Any]", report.get("totals", {}))
     order = list(poses.names) if poses is not None else list(links)
     names = [n for n in order if n in links] + [n for n in links if n not in order]
     shell = np.array([float(links[n]["shell_g"]) for n in names])
@@ -960,37 +969,17 @@ def mass_figure(report: Mapping[str, Any], path: Path, poses: ArmPoses | None = 
 
 # --- the stage body ------------------------------------------------------------------------
 
-def _load_run_log(file: Path) -> dict[str, Array]:
-    keys = ("t", "q", "tau", "tip", "tip_ref", "error_m", "down", "settled")
-    try:
-        with np.load(file, allow_pickle=False) as z:
-            return {k: z[k] for k in keys}
-    except (OSError, KeyError, ValueError) as exc:
-        raise TattotronixError(f"cannot read the run log {file} ({exc}): re-run the "
-                               "'simulate' stage (python stages/draw.py backend=mujoco)") from None
-
-
-def run_log_path(out: Outputs, name: str, backend: str = "mujoco") -> Path:
-    """The simulate stage's log of ``name``, or a message naming the stage to run."""
-    file = out.path("runs", f"{name}-{backend}", "log.npz")
-    if not file.exists():
-        raise TattotronixError(
-            f"missing input {file}: run the 'simulate' stage first (python stages/draw.py "
-            f"art={name} backend={backend} window=null, or dvc repro)")
-    return file
-
-
-def tuning_pose(cfg: Any, t: Array, q: Array, qd: Array) -> Array:
+def tuning_pose(ctl: ControllerConfig, t: Array, q: Array, qd: Array) -> Array:
     """The controller's tuning pose: ``controller.tune_q``, or the reference mid-way
     through the whole drawing (what the simulate stage tunes at)."""
     from tattotronix.control.reference import reference_at_ticks
 
-    if cfg.controller.tune_q is not None:
-        return np.asarray(cfg.controller.tune_q, dtype=np.float64)
-    return reference_at_ticks(t, q, qd, 1.0 / float(cfg.controller.rate_hz)).middle_pose()
+    if ctl.tune_q is not None:
+        return np.asarray(ctl.tune_q, dtype=np.float64)
+    return reference_at_ticks(t, q, qd, 1.0 / float(ctl.rate_hz)).middle_pose()
 
 
-def draw_figures(cfg: Any, out: Outputs, name: str) -> dict[str, Path]:
+def draw_figures(cfg: Config, out: Outputs, name: str) -> dict[str, Path]:
     """Write ``figures/<name>/{joints,torques,steps,tracking}.png`` under ``paths.data``.
 
     Reads the stored trajectory (the 'trajectory' stage), the MuJoCo run log (the
@@ -1006,9 +995,9 @@ def draw_figures(cfg: Any, out: Outputs, name: str) -> dict[str, Path]:
     from tattotronix.trajectory import load_trajectory
 
     desc = build_description(cfg.robot)
-    traj_file = out.require(out.path("trajectories", f"{name}.npz"), "trajectory")
+    traj_file = TrajectoryRecord.require(out.data, name=name)
     urdf = out.require(out.path("robot", f"{desc.name}.urdf"), "robot")
-    run = _load_run_log(run_log_path(out, name))
+    run = RunLogRecord.load_run(out.data, name, "mujoco")
     traj = load_trajectory(traj_file)
     fig_dir = out.path("figures", name)
     written: dict[str, Path] = {}
@@ -1029,25 +1018,25 @@ def draw_figures(cfg: Any, out: Outputs, name: str) -> dict[str, Path]:
     effort = np.array([j.effort for j in desc.joints])
     limit: Any = effort if ctl.torque_limit_nm is None else float(ctl.torque_limit_nm)
     target = fig_dir / "torques.png"
-    torques_figure(traj.t, grav, run["t"], run["tau"], run["down"], traj.joints,
+    torques_figure(traj.t, grav, run.t, run.tau, run.down, traj.joints,
                    out.tmp_path(target), name, float(np.max(limit)))
     written["torques"] = target
     times["torques"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    tune_q = tuning_pose(cfg, traj.t, traj.q, traj.qd)
+    tune_q = tuning_pose(cfg.controller, traj.t, traj.q, traj.qd)
     sets = []
     for wn in dict.fromkeys((float(ctl.wn), 20.0)):
         for structure in ("pid_g", "pid_g_v"):
             s = step_set(desc, urdf, tune_q, wn, structure, float(ctl.rate_hz),
                          float(cfg.plant.dt_s), limit)
             sets.append(s)
+            sat = [j for j, on in zip(s.joint_names, s.saturated, strict=True) if on]
             log.info("figures %s: %s at wn %g: overshoot sim %s %%, coupled linear %s %%, "
                      "single axis %.1f %%%s", name, s.label, wn,
                      " ".join(f"{v:.1f}" for v in s.overshoot_pct),
                      " ".join(f"{v:.1f}" for v in s.linear_overshoot_pct), s.single_axis_pct,
-                     f"; saturated: {', '.join(s.summary()['saturated'])}"
-                     if s.saturated.any() else "")
+                     f"; saturated: {', '.join(sat)}" if sat else "")
     target = fig_dir / "steps.png"
     steps_figure(sets, out.tmp_path(target), name)
     written["steps"] = target
@@ -1055,25 +1044,29 @@ def draw_figures(cfg: Any, out: Outputs, name: str) -> dict[str, Path]:
 
     t0 = time.perf_counter()
     target = fig_dir / "tracking.png"
-    tracking_figure(run["t"], run["error_m"], run["down"], run["settled"],
-                    out.tmp_path(target), name, needle_um=float(cfg.draw.needle_mm) * 1e3)
+    tracking_figure(run.t, run.error_m, run.down, run.settled,
+                    out.tmp_path(target), name, needle_um=cfg.draw.needle_um)
     written["tracking"] = target
     times["tracking"] = time.perf_counter() - t0
     log.info("figures %s: %s", name, ", ".join(f"{k} {v:.2f} s" for k, v in times.items()))
     return written
 
 
-def clearance_figure(pair_names: Sequence[str], series_m: ArrayLike, least_m: ArrayLike,
-                     t: ArrayLike, kind: ArrayLike, margin_m: float, path: Path,
-                     title: str = "", pairs: int = 6) -> Path:
-    """The clearance of the closest pairs along a trajectory (collision stage).
+def clearance_figure(rep: TrajectoryClearance, t: ArrayLike, kind: ArrayLike, path: Path,
+                     pairs: int = 6) -> Path:
+    """The clearance of the closest pairs along a checked trajectory (collision stage).
 
     Left: each of the ``pairs`` closest pairs' clearance over time (mm, log scale), the
     margin dashed, marking shaded. Right: every checked pair's least clearance, sorted.
+    The title names the least clearance, its pair, the margin and the check's effort.
     """
+    pair_names, margin_m, w = rep.pair_names, rep.margin_m, rep.worst
+    title = (f"least clearance {rep.min_clearance_m[w] * 1000:.2f} mm "
+             f"({pair_names[w].replace('|', ' / ')}), margin {margin_m * 1000:g} mm; "
+             f"{rep.samples} poses, {rep.bisected} segments bisected")
     plt, fig = _new_figure("clearance")
-    tt, ser = np.asarray(t), np.asarray(series_m) * MM
-    least = np.asarray(least_m) * MM
+    tt, ser = np.asarray(t), np.asarray(rep.series_m) * MM
+    least = np.asarray(rep.min_clearance_m) * MM
     order = np.argsort(least)
     ax = fig.add_axes((0.06, 0.1, 0.56, 0.8))
     _shade(ax, tt, _marking(kind), "marking")
@@ -1097,6 +1090,5 @@ def clearance_figure(pair_names: Sequence[str], series_m: ArrayLike, least_m: Ar
     bx.axvline(margin_m * MM, color="#c92a2a", ls="--", lw=1.2)
     bx.set_xlabel("least clearance (mm)")
     bx.set_title("every checked pair")
-    if title:
-        fig.suptitle(title)
+    fig.suptitle(title)
     return _save(plt, fig, path)

@@ -6,16 +6,16 @@ stage, reports) reads this one object; nothing re-types the joint table.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
-from omegaconf import DictConfig, OmegaConf
+from numpy.typing import ArrayLike, NDArray
 
+from tattotronix.config.schema import MassModel, RobotConfig, Tool
 from tattotronix.errors import TattotronixError
-from tattotronix.robot.stl import mesh_dir_files, resolve_cad_dir
+from tattotronix.robot.stl import mesh_dir_files, read_stl, resolve_cad_dir
 
 __all__ = [
     "Frame",
@@ -52,21 +52,22 @@ class Inertial:
     inertia: NDArray[np.float64]  # (3, 3)
 
     @staticmethod
-    def from_list(mass: float, com: Any, six: Any) -> Inertial:
+    def from_list(mass: float, com: ArrayLike, six: Sequence[float]) -> Inertial:
         """From ``[ixx, ixy, ixz, iyy, iyz, izz]``."""
         ixx, ixy, ixz, iyy, iyz, izz = (float(v) for v in six)
         tensor = np.array([[ixx, ixy, ixz], [ixy, iyy, iyz], [ixz, iyz, izz]])
         return Inertial(float(mass), np.asarray(com, dtype=float), tensor)
 
     @staticmethod
-    def solid_box(mass: float, centre: Any, size: Any) -> Inertial:
+    def solid_box(mass: float, centre: ArrayLike, size: Sequence[float]) -> Inertial:
         """A solid box: m (b^2 + c^2) / 12 about each axis."""
         a, b, c = (float(v) for v in size)
         diag = mass / 12.0 * np.array([b * b + c * c, a * a + c * c, a * a + b * b])
         return Inertial(float(mass), np.asarray(centre, dtype=float), np.diag(diag))
 
     @staticmethod
-    def solid_cylinder_z(mass: float, centre: Any, radius: float, length: float) -> Inertial:
+    def solid_cylinder_z(mass: float, centre: ArrayLike, radius: float,
+                         length: float) -> Inertial:
         """A solid cylinder along z: m (3 r^2 + h^2) / 12 across, m r^2 / 2 along."""
         across = mass * (3 * radius**2 + length**2) / 12.0
         along = mass * radius**2 / 2.0
@@ -88,6 +89,21 @@ class Geometry:
     origin: NDArray[np.float64]  # position in the link frame, m
     size: NDArray[np.float64]  # box (3,) full size; cylinder (radius, length); mesh: scale (3,)
     mesh: Path | None = None
+
+    def points(self) -> NDArray[np.float64]:
+        """Points of the geometry in its link frame (m): mesh vertices or primitive corners."""
+        if self.kind == "mesh":
+            assert self.mesh is not None
+            return read_stl(self.mesh).reshape(-1, 3) * self.size + self.origin
+        if self.kind == "box":
+            half = np.asarray(self.size) / 2
+            corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1)
+                                for sz in (-1, 1)])
+            return corners * half + self.origin
+        radius, length = self.size
+        ang = np.linspace(0, 2 * np.pi, 32, endpoint=False)
+        ring = np.stack([radius * np.cos(ang), radius * np.sin(ang), np.zeros_like(ang)], axis=1)
+        return np.concatenate([ring - [0, 0, length / 2], ring + [0, 0, length / 2]]) + self.origin
 
 
 @dataclass(frozen=True)
@@ -200,23 +216,23 @@ class RobotDescription:
         return sum(i.mass for i in self.inertials.values())
 
 
-def _vec(values: Any, n: int, where: str) -> NDArray[np.float64]:
+def _vec(values: Iterable[float], n: int, where: str) -> NDArray[np.float64]:
     arr = np.asarray(list(values), dtype=float)
     if arr.shape != (n,) or not np.all(np.isfinite(arr)):
         raise TattotronixError(f"{where} must be {n} finite numbers, got {list(values)}")
     return arr
 
 
-def build_description(robot: DictConfig | dict[str, Any]) -> RobotDescription:
-    """Validate ``cfg.robot`` and build the description.
+def build_description(robot: RobotConfig) -> RobotDescription:
+    """Validate the ``robot`` settings and build the description.
 
     Raises:
         TattotronixError: a joint limit with lower >= upper, a broken chain, an unknown
             mass model or tool, a missing inertial, or a ``cad_dir`` missing a mesh.
     """
-    r: Any = OmegaConf.create(robot) if isinstance(robot, dict) else robot
-    mass_model = str(getattr(r.mass_model, "value", r.mass_model))
-    tool = str(getattr(r.tool, "value", r.tool))
+    r = robot
+    mass_model = str(r.mass_model.value if isinstance(r.mass_model, MassModel) else r.mass_model)
+    tool = str(r.tool.value if isinstance(r.tool, Tool) else r.tool)
     if mass_model not in ("printed", "box"):
         raise TattotronixError(
             f"robot.mass_model={mass_model!r} is not allowed: choose printed or box"
@@ -257,15 +273,15 @@ def build_description(robot: DictConfig | dict[str, Any]) -> RobotDescription:
 
     # Inertials: the chosen table for the arm links, plus the pen.
     inertials: dict[str, Inertial] = {}
-    table = r.printed if mass_model == "printed" else r.box
     for link in arm_links:
-        if link not in table:
+        if link not in (r.printed if mass_model == "printed" else r.box):
             raise TattotronixError(f"robot.{mass_model} has no inertial for link {link!r}")
-        e = table[link]
         if mass_model == "printed":
+            e = r.printed[link]
             inertials[link] = Inertial.from_list(e.mass, e.com, e.inertia)
         else:
-            inertials[link] = Inertial.solid_box(e.mass, e.centre, e.size)
+            b = r.box[link]
+            inertials[link] = Inertial.solid_box(b.mass, b.centre, b.size)
         if not inertials[link].mass > 0:
             raise TattotronixError(f"robot.{mass_model}.{link}.mass must be positive")
 

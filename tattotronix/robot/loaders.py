@@ -4,17 +4,31 @@ Each loader answers the same three questions at a joint configuration ``q`` (rad
 where every named frame is (m, arm frame), the joint-space mass matrix (kg m^2) and the
 gravity torques (N m). Tests hold the three to each other; the plants build on them.
 Gravity is the description's value (9.80665 m/s^2) in every loader.
+
+Pinocchio's model of a URDF is built once per process (:func:`pinocchio_model`) and shared
+by every user (:class:`PinocchioArm`, ``PinocchioTip`` in tattotronix/kinematics/ik.py,
+``Dynamics`` in tattotronix/control/dynamics.py, ``ModelPlant`` in
+tattotronix/plants/model.py and ``CollisionModel`` in tattotronix/collision/model.py).
+The shared ``pinocchio.Model`` is read-only; each user makes its own ``pinocchio.Data``.
 """
 
 from __future__ import annotations
 
+import hashlib
+import threading
+from collections import OrderedDict
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["ArmModel", "MujocoArm", "PinocchioArm", "PybulletArm", "load_pinocchio"]
+__all__ = ["STANDARD_GRAVITY", "ArmModel", "MujocoArm", "PinocchioArm", "PybulletArm",
+           "load_pinocchio", "pinocchio_model"]
+
+#: m/s^2: the description's default gravity (``robot.gravity``), the one the
+#: kinematics-only users of :func:`pinocchio_model` ask for when they are not told one
+STANDARD_GRAVITY = 9.80665
 
 Vec = NDArray[np.float64]
 
@@ -37,17 +51,48 @@ class ArmModel(Protocol):
         ...
 
 
-def load_pinocchio(urdf: Path, gravity: float):  # -> pin.Model
-    """Pinocchio model from the URDF, fixed base, with the description's gravity."""
-    import pinocchio as pin
+# (sha256 of the URDF text, gravity) -> pinocchio.Model, least recently used first
+_MODELS: OrderedDict[tuple[str, float], Any] = OrderedDict()
+_MODELS_LOCK = threading.Lock()
+#: most models kept (a sweep over descriptions makes one per variant)
+_MODELS_MAX = 64
 
-    model = pin.buildModelFromUrdf(str(urdf))
-    model.gravity.linear = np.array([0.0, 0.0, -gravity])
-    return model
+
+def pinocchio_model(urdf_text: str, gravity: float = STANDARD_GRAVITY
+                    ) -> Any:  # Any: a pin.Model (pinocchio ships no type stubs)
+    """The process's one Pinocchio model of this URDF: fixed base, ``gravity`` (m/s^2)
+    along -z.
+
+    Built on the first call and shared by every later one with the same text and gravity
+    (keyed by the text's sha256, so an edited URDF is built anew). The model is shared,
+    so it is **read-only**: make per-user state with ``model.createData()``, and copy it
+    (``pinocchio.Model(model)``) before changing anything on it.
+    """
+    key = (hashlib.sha256(urdf_text.encode("utf-8")).hexdigest(), float(gravity))
+    with _MODELS_LOCK:
+        model = _MODELS.get(key)
+        if model is not None:
+            _MODELS.move_to_end(key)
+            return model
+        import pinocchio as pin
+
+        model = pin.buildModelFromXML(urdf_text)
+        model.gravity.linear = np.array([0.0, 0.0, -float(gravity)])
+        _MODELS[key] = model
+        if len(_MODELS) > _MODELS_MAX:
+            _MODELS.popitem(last=False)
+        return model
+
+
+def load_pinocchio(urdf: Path, gravity: float) -> Any:  # Any: pin.Model (no stubs)
+    """The shared, read-only Pinocchio model of the URDF file (its content, see
+    :func:`pinocchio_model`), fixed base, with the description's gravity."""
+    return pinocchio_model(Path(urdf).read_text(encoding="utf-8"), gravity)
 
 
 class PinocchioArm:
-    """Pinocchio: FK for every frame, CRBA and RNEA gravity."""
+    """Pinocchio: FK for every frame, CRBA and RNEA gravity (the shared model, its own
+    ``Data``)."""
 
     def __init__(self, urdf: Path, gravity: float):
         import pinocchio as pin

@@ -1,12 +1,13 @@
 """Mass properties of the printed arm: mesh integration plus catalogue servos.
 
-Method (reference/original.md section 7):
+Method (the original's: docs/original.md, "7 Mass-properties method"):
 
 * each link's STL mesh, drawn in its own link frame, is scaled by ``robot.mesh_scale``
   (centimetres to metres) and integrated with the divergence theorem over the signed
   tetrahedra (link origin, a, b, c). The reference point is the link origin on purpose:
   the meshes have open 3 mm bores, so the volume of parts whose gaps enclose a net area
-  depends on the reference point, and the published table uses the link origin;
+  depends on the reference point, and the original's published table (docs/original.md,
+  "1.7 Mass properties") uses the link origin;
 * the shell density is ``pla_density * printed_fraction`` (kg/m^3);
 * every servo in ``robot.servo_mounts`` is a solid catalogue box (axes along the link
   axes, ``size`` taken as x, y, z) centred on the origin of the joint it drives, in the
@@ -34,7 +35,9 @@ from typing import Any
 import numpy as np
 
 from tattotronix.config.params import PROJECT_ROOT
+from tattotronix.config.schema import JointConfig, RobotConfig, Tool
 from tattotronix.errors import TattotronixError
+from tattotronix.io.jsontypes import JsonDict
 from tattotronix.robot.stl import mesh_dir_files, read_stl, resolve_cad_dir
 
 __all__ = [
@@ -113,7 +116,7 @@ class MassProperties:
         i = self.inertia
         return [i[0, 0], i[0, 1], i[0, 2], i[1, 1], i[1, 2], i[2, 2]]
 
-    def as_inertial(self) -> dict[str, Any]:
+    def as_inertial(self) -> JsonDict:
         """``{mass, com, inertia}`` with plain floats (the ``InertialConfig`` layout)."""
         return {
             "mass": self.mass,
@@ -299,17 +302,17 @@ def point_mass(mass: float, position: Sequence[float], name: str = "point") -> M
     )
 
 
-def shell_density(robot_cfg: Any) -> float:
+def shell_density(robot_cfg: RobotConfig) -> float:
     """Printed-shell density ``pla_density * printed_fraction`` (kg/m^3)."""
     return float(robot_cfg.pla_density) * float(robot_cfg.printed_fraction)
 
 
-def link_names(robot_cfg: Any) -> list[str]:
+def link_names(robot_cfg: RobotConfig) -> list[str]:
     """Every link of the tree: the base, then each joint's child in table order."""
     return [str(robot_cfg.base_link)] + [str(j.child) for j in robot_cfg.joints]
 
 
-def _joint(robot_cfg: Any, name: str) -> Any:
+def _joint(robot_cfg: RobotConfig, name: str) -> JointConfig:
     for j in robot_cfg.joints:
         if j.name == name:
             return j
@@ -320,7 +323,8 @@ def _joint(robot_cfg: Any, name: str) -> Any:
     )
 
 
-def servo_parts(robot_cfg: Any, link: str, shell: MassProperties | None) -> list[MassProperties]:
+def servo_parts(robot_cfg: RobotConfig, link: str,
+                shell: MassProperties | None) -> list[MassProperties]:
     """The catalogue servo boxes mounted on ``link`` (link frame, m / kg).
 
     Args:
@@ -376,7 +380,7 @@ def servo_parts(robot_cfg: Any, link: str, shell: MassProperties | None) -> list
 
 
 def link_properties(
-    robot_cfg: Any, link: str, triangles: np.ndarray, name: str | None = None
+    robot_cfg: RobotConfig, link: str, triangles: np.ndarray, name: str | None = None
 ) -> MassProperties:
     """One link: its printed shell (mesh in the link frame, file units) plus its servos.
 
@@ -396,7 +400,7 @@ def link_properties(
     return props
 
 
-def _mesh_files(robot_cfg: Any, cad_dir: str | Path | None = None) -> dict[str, Path]:
+def _mesh_files(robot_cfg: RobotConfig, cad_dir: str | Path | None = None) -> dict[str, Path]:
     cad = cad_dir if cad_dir is not None else robot_cfg.cad_dir
     if cad is None:
         raise TattotronixError(
@@ -407,7 +411,7 @@ def _mesh_files(robot_cfg: Any, cad_dir: str | Path | None = None) -> dict[str, 
 
 
 def printed_table(
-    robot_cfg: Any, cad_dir: str | Path | None = None
+    robot_cfg: RobotConfig, cad_dir: str | Path | None = None
 ) -> dict[str, MassProperties]:
     """Integrate every link's mesh and add its servos: the ``printed`` inertial table.
 
@@ -429,13 +433,13 @@ def printed_table(
     }
 
 
-def mesh_sha256(robot_cfg: Any, cad_dir: str | Path | None = None) -> dict[str, str]:
+def mesh_sha256(robot_cfg: RobotConfig, cad_dir: str | Path | None = None) -> dict[str, str]:
     """The sha256 of each link's mesh file (provenance)."""
     files = _mesh_files(robot_cfg, cad_dir)
     return {link: hashlib.sha256(p.read_bytes()).hexdigest() for link, p in files.items()}
 
 
-def table_from_config(robot_cfg: Any) -> dict[str, MassProperties]:
+def table_from_config(robot_cfg: RobotConfig) -> dict[str, MassProperties]:
     """The committed ``printed`` table of the config as ``{link: MassProperties}``.
 
     Raises:
@@ -506,12 +510,11 @@ def table_difference(
     return out
 
 
-def _tool_is_pen(robot_cfg: Any) -> bool:
-    tool = robot_cfg.tool
-    return str(getattr(tool, "name", tool)) == "tattoo"
+def _tool_is_pen(robot_cfg: RobotConfig) -> bool:
+    return robot_cfg.tool is Tool.tattoo
 
 
-def mass_report(table: Mapping[str, MassProperties], robot_cfg: Any) -> dict[str, Any]:
+def mass_report(table: Mapping[str, MassProperties], robot_cfg: RobotConfig) -> JsonDict:
     """Metrics of an inertial table (for ``data/metrics/mass.json``).
 
     Servo masses come from the config's catalogue and mounts; the shell is the rest.
@@ -566,7 +569,7 @@ def mass_report(table: Mapping[str, MassProperties], robot_cfg: Any) -> dict[str
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: integrate the meshes; ``--write`` rewrites the committed table."""
-    from tattotronix.config.params import compose
+    from tattotronix.config.params import compose_settings
     from tattotronix.errors import ConfigError
 
     ap = argparse.ArgumentParser(
@@ -581,13 +584,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = ap.parse_args(argv)
     try:
         cad = Path(args.cad_dir).expanduser().resolve()
-        cfg = compose([*args.overrides, f"robot.cad_dir={cad}"])
+        cfg = compose_settings([*args.overrides, f"robot.cad_dir={cad}"])
         table = printed_table(cfg.robot)
         text = table_yaml(table)
     except (TattotronixError, ConfigError) as exc:
         print(f"mass: error: {exc}", file=sys.stderr)
         return 2
-    report = mass_report(table, cfg.robot)
+    report: dict[str, Any] = mass_report(table, cfg.robot)  # read back: JSON values
     for link, row in report["links"].items():
         print(
             f"{link:16s} V {row['volume_cm3']:8.3f} cm3  shell {row['shell_g']:7.2f} g  "

@@ -1,5 +1,5 @@
-"""The actuator study: what hobby servos allow at the needle (reference ``original.md``
-section 6.6).
+"""The actuator study: what hobby servos allow at the needle (docs/actuators.md; the
+original's: docs/original.md, "6.6 The actuator study").
 
 A hobby servo takes a position pulse every frame and closes its own loop. Two floors lie
 under its error that no controller above it can remove:
@@ -46,10 +46,12 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from tattotronix.config.schema import ActuatorOption
+from tattotronix.config.schema import ActuatorOption, ActuatorStudyConfig, Config, RobotConfig
 from tattotronix.errors import TattotronixError
 from tattotronix.hardware.pca9685 import COUNTS
+from tattotronix.io.jsontypes import JsonDict
 from tattotronix.kinematics import Chain
+from tattotronix.plotting import pyplot
 from tattotronix.trajectory import MARK, StoredTrajectory
 
 __all__ = [
@@ -134,7 +136,7 @@ class Declared:
         """The pulse step of a command (``pca9685`` or ``arduino``), us."""
         return self.pca9685_step_us if command == "pca9685" else self.arduino_step_us
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JsonDict:
         """The ``declared`` block of the metrics file."""
         return {
             "us_per_deg": float(self.us_per_deg),
@@ -147,7 +149,7 @@ class Declared:
         }
 
 
-def declared(study: Any, robot: Any, frame_hz: float,
+def declared(study: ActuatorStudyConfig, robot: RobotConfig, frame_hz: float,
              joint_names: Sequence[str]) -> Declared:
     """Collect the declared numbers from the config.
 
@@ -569,12 +571,12 @@ def actuator_study(
         backlash_deg=float(backlash_deg), series_every=int(series_every))
 
 
-def study_from_config(cfg: Any, chain: Chain, traj: StoredTrajectory,
+def study_from_config(cfg: Config, chain: Chain, traj: StoredTrajectory,
                       frame_hz: float | None = None) -> ActuatorStudy:
-    """The study with every setting from the composed config.
+    """The study with every setting from the settings.
 
     Args:
-        cfg: the composed config (``study.actuator``, ``robot``, ``hardware``, ``draw``,
+        cfg: the settings (``study.actuator``, ``robot``, ``hardware``, ``draw``,
             ``toolpath``).
         chain: the kinematic model.
         traj: the drawing's stored trajectory.
@@ -584,7 +586,7 @@ def study_from_config(cfg: Any, chain: Chain, traj: StoredTrajectory,
         The study.
     """
     sc = cfg.study.actuator
-    hz = float(cfg.hardware.servos.frame_hz) if frame_hz is None else float(frame_hz)
+    hz = float(cfg.hardware.servos["frame_hz"]) if frame_hz is None else float(frame_hz)
     decl = declared(sc, cfg.robot, hz, chain.joint_names)
     return actuator_study(
         chain, traj, decl, sc.options, every=int(sc.every),
@@ -598,7 +600,7 @@ def _floats(a: ArrayLike) -> list[float]:
     return [float(v) for v in np.ravel(np.asarray(a, dtype=float))]
 
 
-def metrics(result: ActuatorStudy, series: bool = False) -> dict[str, Any]:
+def metrics(result: ActuatorStudy, series: bool = False) -> JsonDict:
     """The metrics file's content (the original's keys; plain floats, lists and dicts).
 
     Args:
@@ -690,15 +692,6 @@ def series_arrays(result: ActuatorStudy) -> dict[str, np.ndarray]:
 
 # --- the figure --------------------------------------------------------------------------
 
-def _pyplot() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 _COLOURS = ("#c92a2a", "#f08c00", "#1971c2", "#2b8a3e", "#7048e8", "#495057")
 
 
@@ -714,7 +707,7 @@ def figure(result: ActuatorStudy, path: Path, title: str = "") -> None:
         path: the PNG to write.
         title: prefixed to the figure's title (the drawing's name).
     """
-    plt = _pyplot()
+    plt = pyplot()
 
     joints = result.joints
     n = len(joints)

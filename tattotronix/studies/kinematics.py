@@ -1,5 +1,6 @@
 """The kinematics study: zero-pose frames, conditioning along the path, panel reachability,
-the placement sweep and the workspace (reference ``original.md`` sections 1.3 and 3.4).
+the placement sweep and the workspace (docs/kinematics.md; the original's: docs/original.md,
+"1.3 Zero pose" and "3.4 Conditioning, reachability, placement").
 
 Everything here builds on :mod:`tattotronix.kinematics` (the chain model, the batched
 path IK, the Pinocchio reference solver, the 5x5 task Jacobian); no IK is re-implemented.
@@ -57,6 +58,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.config.schema import KinematicsStudyConfig
 from tattotronix.errors import TattotronixError
+from tattotronix.io.jsontypes import JsonDict
 from tattotronix.kinematics import (
     Chain,
     Conditioning,
@@ -68,13 +70,14 @@ from tattotronix.kinematics import (
 )
 from tattotronix.kinematics.ik import (
     ANCHOR_SPACING_M,
-    DAMPING,
+    DLS_LAMBDA,
     MAX_ITER,
     NEEDLE_AXIS,
     SEED,
     TOL,
 )
 from tattotronix.path.kinds import TRAVEL
+from tattotronix.plotting import legend_proxy, pyplot
 from tattotronix.robot.description import RobotDescription
 
 __all__ = [
@@ -169,7 +172,7 @@ class ZeroPose:
         """The tip frame's origin, mm."""
         return self.frames_mm[self.tip_frame]
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JsonDict:
         """For the metrics file (mm rounded to 0.1 um)."""
         return {
             "frames_mm": {k: [round(v, 4) for v in p] for k, p in self.frames_mm.items()},
@@ -195,8 +198,6 @@ def zero_pose_frames(desc: RobotDescription, ref: PinocchioTip | None = None) ->
     """
     import pinocchio as pin
 
-    from tattotronix.robot.report import geometry_points
-
     ref = ref or PinocchioTip.from_description(desc)
     model = ref.model
     data = model.createData()
@@ -214,7 +215,7 @@ def zero_pose_frames(desc: RobotDescription, ref: PinocchioTip | None = None) ->
             continue
         placement = data.oMf[model.getFrameId(link)]
         for g in desc.geometry.get(link, ()):
-            pts = geometry_points(g) @ placement.rotation.T + placement.translation
+            pts = g.points() @ placement.rotation.T + placement.translation
             highest = max(highest, float(pts[:, 2].max()))
     chain_tcp, _ = Chain.from_description(desc, ref.tip_frame).fk(q0)
     wrist = desc.joints[3].child if len(desc.joints) > 3 else desc.joints[-1].child
@@ -268,7 +269,7 @@ class PathConditioning:
         """(N,) smallest singular value."""
         return self.cond.sigma[:, -1]
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JsonDict:
         """Ranges (``[min, max]``) of sigma_1, sigma_5, cond and manipulability; the worst
         point (panel mm), its condition, weakest direction and column norms; joint ranges."""
         c = self.cond
@@ -371,7 +372,7 @@ class Reachability:
         """Every failing cell is in the grid's last column (the panel edge farthest out)."""
         return not bool((~self.reachable[:, :-1]).any())
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JsonDict:
         """Percentage, cell counts, failing cells (arm and panel mm), conditioning range."""
         cx, cy = float(self.centre_m[0]), float(self.centre_m[1])
         return {
@@ -387,7 +388,6 @@ class Reachability:
             "failures_on_outer_x_edge": self.failures_on_outer_x_edge,
             "sigma5": _range(self.sigma5),
             "cond": _range(self.cond),
-            "solve_s": self.solve_s,
         }
 
 
@@ -400,11 +400,12 @@ def panel_reachability(
     ref: PinocchioTip | None = None,
     seed: ArrayLike = SEED,
     needle_axis: ArrayLike = NEEDLE_AXIS,
-    damping: float = DAMPING,
+    dls_lambda: float = DLS_LAMBDA,
     max_iter: int = MAX_ITER,
     tol: float = TOL,
 ) -> Reachability:
-    """The original's panel reachability (reference section 3.4).
+    """The original's panel reachability (docs/original.md, "3.4 Conditioning,
+    reachability, placement").
 
     A ``nx x ny`` grid spans the panel surface edge to edge (``desc.panel_centre`` and
     ``desc.panel_size``; the surface is the panel's top). Each row is swept in +x with the
@@ -421,7 +422,8 @@ def panel_reachability(
         ref: the Pinocchio model and tip frame (built from ``desc`` when None).
         seed: (n,) the reset seed, rad.
         needle_axis: (3,) the wanted needle axis (vertical, pointing down).
-        damping, max_iter, tol: the DLS settings (see :func:`~tattotronix.kinematics.solve_point`).
+        dls_lambda, max_iter, tol: the DLS settings (see
+            :func:`~tattotronix.kinematics.solve_point`).
 
     Returns:
         The grid and which cells are reachable.
@@ -448,7 +450,7 @@ def panel_reachability(
     for r, y in enumerate(ys):
         q = q0
         for c, x in enumerate(xs):
-            p = solve_point(ref, (x, y, z), needle_axis=needle_axis, q0=q, damping=damping,
+            p = solve_point(ref, (x, y, z), needle_axis=needle_axis, q0=q, dls_lambda=dls_lambda,
                             max_iter=max_iter, tol=tol, data=data)
             ok[r, c], res[r, c], reason[r, c] = p.converged, p.residual, p.reason
             if p.converged:
@@ -553,7 +555,7 @@ class Placement:
         """``"150x30"``."""
         return f"{self.width_mm:g}x{self.offset_mm:g}"
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JsonDict:
         """For the metrics file (NaN as null)."""
         return {
             "width_mm": self.width_mm,
@@ -567,7 +569,6 @@ class Placement:
             "cond_max": _finite_or_none(self.cond_max),
             "manipulability_min": _finite_or_none(self.manipulability_min),
             "worst_point_mm": [_finite_or_none(v) for v in _floats(self.worst_point_mm)],
-            "solve_s": self.solve_s,
         }
 
 
@@ -582,7 +583,7 @@ class PlacementSweep:
 
     rows: tuple[Placement, ...]
     method: str = "planned path scaled in the panel plane about its extent's centre"
-    stats: dict[str, Any] = field(default_factory=dict)
+    stats: JsonDict = field(default_factory=dict)
 
     def equal_reach_spread_pct(self) -> dict[str, float]:
         """For each reach shared by two or more placements, the spread of their sigma_5
@@ -596,7 +597,7 @@ class PlacementSweep:
                 out[f"{r:g}"] = float(100.0 * (s5.max() - s5.min()) / s5.max())
         return out
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JsonDict:
         """Rows keyed by label (``"150x30"``), the method, and the equal-reach spreads."""
         return {
             "method": self.method,
@@ -615,7 +616,7 @@ def placement_sweep(
     origin_m: ArrayLike = (0.21, 0.0, 0.005),
     seed: ArrayLike = SEED,
     needle_axis: ArrayLike = NEEDLE_AXIS,
-    damping: float = DAMPING,
+    dls_lambda: float = DLS_LAMBDA,
     max_iter: int = MAX_ITER,
     tol: float = TOL,
     anchor_spacing_m: float = ANCHOR_SPACING_M,
@@ -630,7 +631,7 @@ def placement_sweep(
         widths_mm: drawing widths, mm, paired element by element with ``offsets_mm``.
         offsets_mm: shifts in +x, mm.
         origin_m: (3,) the panel origin (surface centre) in the arm frame, m.
-        seed, needle_axis, damping, max_iter, tol, anchor_spacing_m: IK settings (see
+        seed, needle_axis, dls_lambda, max_iter, tol, anchor_spacing_m: IK settings (see
             :func:`~tattotronix.kinematics.solve_path`).
         progress: called with each finished row.
 
@@ -654,7 +655,7 @@ def placement_sweep(
     for w, o in zip(widths_mm, offsets_mm, strict=True):
         uvz = place_path(uvz_mm, k, float(w), float(o))
         x = origin + uvz / MM
-        res = solve_path(chain, x, needle_axis=needle_axis, seed=seed, damping=damping,
+        res = solve_path(chain, x, needle_axis=needle_axis, seed=seed, dls_lambda=dls_lambda,
                          max_iter=max_iter, tol=tol, anchor_spacing_m=anchor_spacing_m)
         ok = res.converged
         s5 = cmax = mmin = r_worst = math.nan
@@ -697,7 +698,7 @@ class Workspace:
     axis: Array
     seed: int
 
-    def summary(self, chain: Chain | None = None) -> dict[str, Any]:
+    def summary(self, chain: Chain | None = None) -> JsonDict:
         """Sample count, seed, tip ranges (mm) and, with ``chain``, the farthest distance
         from the joint_1 axis (mm)."""
         lo, hi = self.tip_m.min(axis=0) * MM, self.tip_m.max(axis=0) * MM
@@ -725,15 +726,6 @@ def workspace_samples(chain: Chain, n: int = WORKSPACE_SAMPLES,
 
 # --- figures (matplotlib, Agg) -----------------------------------------------------------
 
-def _pyplot() -> Any:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
 def _panel_patch(ax: Any, w_mm: float, h_mm: float, cx: float = 0.0, cy: float = 0.0,
                  zorder: float = 0) -> None:
     from matplotlib.patches import Rectangle
@@ -750,14 +742,6 @@ def _side_colorbar(fig: Any, ax: Any, mappable: Any, label: str) -> None:
     fig.colorbar(mappable, cax=cax, label=label)
 
 
-def _proxy(marker: str, colour: str, label: str, ms: float = 6, ls: str = "none",
-           lw: float = 0.0, mec: str | None = None) -> Any:
-    from matplotlib.lines import Line2D
-
-    return Line2D([], [], marker=marker, color=colour, ls=ls, lw=lw, ms=ms, label=label,
-                  mec=mec or colour)
-
-
 def manipulability_figure(pc: PathConditioning, kind: ArrayLike, panel_size_mm: Sequence[float],
                           path: Path, title: str = "") -> None:
     """sigma_5, condition number and manipulability along the path (worst point marked),
@@ -770,7 +754,7 @@ def manipulability_figure(pc: PathConditioning, kind: ArrayLike, panel_size_mm: 
         path: the PNG to write.
         title: first title line (the artwork's name).
     """
-    plt = _pyplot()
+    plt = pyplot()
     from matplotlib.gridspec import GridSpec
 
     k = np.asarray(kind)
@@ -820,7 +804,7 @@ def manipulability_figure(pc: PathConditioning, kind: ArrayLike, panel_size_mm: 
     ax.set_ylabel("panel v (mm)")
     ax.legend(loc="upper left", fontsize=7)
     _side_colorbar(fig, ax, sc, "condition number (marking and approach points)")
-    s = pc.summary()
+    s: dict[str, Any] = pc.summary()  # read back: JSON values
     fig.suptitle(
         f"{title + ': ' if title else ''}task-Jacobian conditioning along the path "
         f"({s['points']} points)   sigma_1 {s['sigma1'][0]:.4f} .. {s['sigma1'][1]:.4f}, "
@@ -838,7 +822,7 @@ def reachability_figure(reach: Reachability, uvz_mm: ArrayLike, kind: ArrayLike,
     saved as a PNG. Coordinates are panel mm (the panel centre at the origin), like the
     toolpath figure.
     """
-    plt = _pyplot()
+    plt = pyplot()
     from matplotlib.colors import ListedColormap, LogNorm
 
     cx, cy = reach.centre_m[0] * MM, reach.centre_m[1] * MM
@@ -864,10 +848,10 @@ def reachability_figure(reach: Reachability, uvz_mm: ArrayLike, kind: ArrayLike,
     ax.set_ylim(ys[0] - dy - 2, ys[-1] + dy + 2)
     ax.set_xlabel(f"panel u (mm; arm x = {cx:.0f} + u, +x away from the base)")
     ax.set_ylabel(f"panel v (mm; arm y = {cy:.0f} + v)")
-    handles = [_proxy("s", "#e03131", f"unreachable ({len(rr)} cells)", ms=8, mec="white"),
-               _proxy("s", "#3b528b", "reachable (colour: condition number)", ms=8),
-               _proxy("s", "none", "panel edge", ms=8, mec="#8a7f70"),
-               _proxy(".", "#adb5bd", "the drawing (white)", ms=6)]
+    handles = [legend_proxy("s", "#e03131", f"unreachable ({len(rr)} cells)", ms=8, mec="white"),
+               legend_proxy("s", "#3b528b", "reachable (colour: condition number)", ms=8),
+               legend_proxy("s", "none", "panel edge", ms=8, mec="#8a7f70"),
+               legend_proxy(".", "#adb5bd", "the drawing (white)", ms=6)]
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=4,
               fontsize=8, frameon=False)
     _side_colorbar(fig, ax, mesh, "condition number sigma_1 / sigma_5 at the cell")
@@ -888,7 +872,7 @@ def workspace_figure(ws: Workspace, desc: RobotDescription, path: Path,
     the panel, the zero-pose tip; samples whose needle points within ``down_deg`` of
     straight down are highlighted; with ``reach``, the panel grid cells reached or not.
     Saved as a PNG."""
-    plt = _pyplot()
+    plt = pyplot()
 
     p = ws.tip_m * MM
     down = ws.axis[:, 2] < -math.cos(math.radians(down_deg))
@@ -909,27 +893,27 @@ def workspace_figure(ws: Workspace, desc: RobotDescription, path: Path,
         ax.set_aspect("equal")
         ax.grid(alpha=0.3)
     common = [
-        _proxy(".", "#adb5bd", f"tip, any needle axis ({int((~down).sum())})"),
-        _proxy(".", "#1971c2", f"tip, needle within {down_deg:g} deg of down "
-                               f"({int(down.sum())})"),
-        _proxy("*", "#f08c00", "tip at the zero pose", ms=10, mec="black"),
-        _proxy("+", "black", "joint_1 axis", ms=10),
+        legend_proxy(".", "#adb5bd", f"tip, any needle axis ({int((~down).sum())})"),
+        legend_proxy(".", "#1971c2", f"tip, needle within {down_deg:g} deg of down "
+                                     f"({int(down.sum())})"),
+        legend_proxy("*", "#f08c00", "tip at the zero pose", ms=10, mec="black"),
+        legend_proxy("+", "black", "joint_1 axis", ms=10),
     ]
     a1.plot([centre[0] - size[0] / 2, centre[0] + size[0] / 2], [surface, surface], "-",
             color="#c92a2a", lw=3)
     a1.axhline(0, color="#495057", lw=1)
-    a1.legend(handles=[*common, _proxy("", "#c92a2a", "panel surface", ls="-", lw=3),
-                       _proxy("", "#495057", "bench top (z = 0)", ls="-", lw=1)],
+    a1.legend(handles=[*common, legend_proxy("", "#c92a2a", "panel surface", ls="-", lw=3),
+                       legend_proxy("", "#495057", "bench top (z = 0)", ls="-", lw=1)],
               loc="lower left", fontsize=7, framealpha=0.9)
     _panel_patch(a2, float(size[0]), float(size[1]), float(centre[0]), float(centre[1]))
-    extra = [_proxy("s", "none", "panel", ms=8, mec="#8a7f70")]
+    extra = [legend_proxy("s", "none", "panel", ms=8, mec="#8a7f70")]
     if reach is not None:
         ok = reach.reachable
         xx, yy = np.meshgrid(reach.x_m * MM, reach.y_m * MM)
         a2.plot(xx[ok], yy[ok], ".", ms=2, color="#2b8a3e")
         a2.plot(xx[~ok], yy[~ok], "x", ms=4, color="#c92a2a")
-        extra += [_proxy(".", "#2b8a3e", "panel cells reached, needle vertical"),
-                  _proxy("x", "#c92a2a", "panel cells not reached")]
+        extra += [legend_proxy(".", "#2b8a3e", "panel cells reached, needle vertical"),
+                  legend_proxy("x", "#c92a2a", "panel cells not reached")]
     a2.legend(handles=[*common, *extra], loc="lower left", fontsize=7, framealpha=0.9)
     a1.set_title("elevation (x-z; every y)", fontsize=9)
     a2.set_title("plan (x-y; every z)", fontsize=9)
@@ -945,7 +929,7 @@ def placement_figure(sweep: PlacementSweep, path: Path, reach: Reachability | No
     """sigma_5 minimum and condition maximum against the reach in +x, and sigma_5 against
     the weakest point's distance from the joint_1 axis (with the panel grid's sigma_5 at
     each reachable cell, the same function of that distance); saved as a PNG."""
-    plt = _pyplot()
+    plt = pyplot()
 
     rows = sweep.rows
     reach_mm = np.array([p.reach_mm for p in rows])

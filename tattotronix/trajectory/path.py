@@ -1,10 +1,11 @@
 """The joint-space needle path the time law runs along (the ``ik`` stage's output).
 
 A path is a polyline of ``N`` points: joint angles ``q`` (rad), the FK tip ``tcp`` of each
-(m, arm frame), a point kind (0 travel, 1 mark, 2 approach; reference section 2.6) and the
-panel coordinates ``uvz_mm`` (for messages). Segment ``i -> i+1`` is *marking* when both
-ends are mark points, *approach* when either end is an approach point, and travel
-otherwise (reference section 2.7), exactly as the toolpath stage times it.
+(m, arm frame), a point kind (0 travel, 1 mark, 2 approach; docs/original.md, "2.6 The
+3-D path") and the panel coordinates ``uvz_mm`` (for messages). Segment ``i -> i+1`` is
+*marking* when both ends are mark points, *approach* when either end is an approach
+point, and travel otherwise (docs/original.md, "2.7 Panel to arm frame, timing"), exactly
+as the toolpath stage times it.
 
 The path parameter ``s`` is the tip's arc length along the chords between consecutive
 ``tcp`` (m), so a path speed ``ds/dt`` is a tip speed and a feed (mm/s) caps it directly.
@@ -20,16 +21,15 @@ kept on its axis), warm-started from the chord's own start so they stay on its b
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.errors import TattotronixError
-from tattotronix.kinematics import Chain, solve_path
+from tattotronix.io.artifacts import IkRecord
+from tattotronix.kinematics import Chain, IkOptions, solve_path
 from tattotronix.path.kinds import APPROACH, MARK, TRAVEL
 
 __all__ = [
@@ -44,8 +44,6 @@ __all__ = [
 ]
 
 Array = NDArray[np.float64]
-#: segment kinds (same codes): 1 marking, 2 approach, 0 travel
-_IK_KEYS = ("joints", "q", "tcp", "kind", "uvz_mm")
 
 
 @dataclass(frozen=True)
@@ -87,8 +85,8 @@ class JointPath:
                                    "2 approach)")
 
     @classmethod
-    def from_arrays(cls, joints: tuple[str, ...] | list[str], q: Any, tcp: Any, kind: Any,
-                    uvz_mm: Any | None = None) -> JointPath:
+    def from_arrays(cls, joints: tuple[str, ...] | list[str], q: ArrayLike, tcp: ArrayLike,
+                    kind: ArrayLike, uvz_mm: ArrayLike | None = None) -> JointPath:
         """Build a path from arrays; ``source`` is 0..N-1.
 
         ``uvz_mm`` defaults to the tip in arm-frame millimetres (the same lengths).
@@ -101,18 +99,15 @@ class JointPath:
 
     @classmethod
     def from_npz(cls, file: str | Path) -> JointPath:
-        """Load the ``ik`` stage's ``data/ik/<name>.npz`` (``allow_pickle=False``).
+        """Load the ``ik`` stage's ``data/ik/<name>.npz``
+        (:class:`tattotronix.io.artifacts.IkRecord`).
 
         Raises:
-            TattotronixError: a key is missing (the file is not an IK output).
+            TattotronixError: a key is missing or the file is unreadable (the message names
+                the 'ik' stage).
         """
-        with np.load(file, allow_pickle=False) as z:
-            missing = [k for k in _IK_KEYS if k not in z.files]
-            if missing:
-                raise TattotronixError(f"{file} is not an IK output: missing {missing}; "
-                                       "re-run the 'ik' stage")
-            return cls.from_arrays(tuple(str(j) for j in z["joints"]), z["q"], z["tcp"],
-                                   z["kind"], z["uvz_mm"])
+        r = IkRecord.load(file)
+        return cls.from_arrays(r.joints, r.q, r.tcp, r.kind, r.uvz_mm)
 
     def __len__(self) -> int:
         return len(self.kind)
@@ -140,7 +135,8 @@ class JointPath:
         return np.concatenate(([0.0], np.cumsum(self.segment_lengths())))
 
     def segment_kinds(self) -> NDArray[np.int8]:
-        """(N-1,) segment kinds: 1 marking, 2 approach, 0 travel (reference section 2.7)."""
+        """(N-1,) segment kinds: 1 marking, 2 approach, 0 travel (docs/original.md, "2.7
+        Panel to arm frame, timing")."""
         return segment_kinds(self.kind)
 
     def marked(self) -> NDArray[np.bool_]:
@@ -165,7 +161,8 @@ class JointPath:
 
 def segment_kinds(kind: NDArray[np.int8]) -> NDArray[np.int8]:
     """(N-1,) segment kinds from point kinds: 1 marking (both ends mark points), 2 approach
-    (either end an approach point), 0 travel (reference section 2.7)."""
+    (either end an approach point), 0 travel (docs/original.md, "2.7 Panel to arm frame,
+    timing")."""
     k = np.asarray(kind)
     seg = np.zeros(max(len(k) - 1, 0), np.int8)
     seg[(k[:-1] == MARK) & (k[1:] == MARK)] = MARK
@@ -174,7 +171,7 @@ def segment_kinds(kind: NDArray[np.int8]) -> NDArray[np.int8]:
 
 
 def densify(path: JointPath, chain: Chain, max_step_m: float,
-            ik: Mapping[str, Any] | None = None,
+            ik: IkOptions | None = None,
             keep: NDArray[np.bool_] | None = None) -> JointPath:
     """Split every chord longer than ``max_step_m`` into equal steps, with IK at new points.
 
@@ -190,7 +187,7 @@ def densify(path: JointPath, chain: Chain, max_step_m: float,
         path: the path.
         chain: the kinematic model.
         max_step_m: the longest chord kept as is, m.
-        ik: keyword arguments for ``solve_path`` (``needle_axis``, ``damping``,
+        ik: keyword arguments for ``solve_path`` (``needle_axis``, ``dls_lambda``,
             ``max_iter``, ``tol``, ``anchor_spacing_m``); its defaults otherwise.
         keep: (N-1,) chords never split (planned travel hops), default none.
 
@@ -218,7 +215,7 @@ def densify(path: JointPath, chain: Chain, max_step_m: float,
     frac = np.concatenate(fracs)
     a, b = path.tcp[owner], path.tcp[owner + 1]
     targets = a + frac[:, None] * (b - a)
-    res = solve_path(chain, targets, seed=path.q[long_[0]], **dict(ik or {}))
+    res = solve_path(chain, targets, seed=path.q[long_[0]], **(ik or {}))
     if not res.ok:
         j = int(res.failed[0])
         i = int(owner[j])

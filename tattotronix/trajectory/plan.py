@@ -33,19 +33,20 @@ Units: SI inside (m, rad, s); mm only in names that say so.
 
 from __future__ import annotations
 
-import json
 import math
 import time
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
+from tattotronix.config.schema import Config
 from tattotronix.errors import TattotronixError
-from tattotronix.kinematics import Chain
+from tattotronix.io.artifacts import PROVENANCE_KEY, TRAJECTORY, TrajectoryRecord
+from tattotronix.io.jsontypes import JsonDict
+from tattotronix.kinematics import Chain, IkOptions
 from tattotronix.trajectory.path import (
     APPROACH,
     MARK,
@@ -73,8 +74,9 @@ __all__ = [
 ]
 
 Array = NDArray[np.float64]
-#: the keys of ``data/trajectories/<name>.npz`` (design section 8)
-NPZ_KEYS = ("joints", "t", "q", "qd", "qdd", "kind", "marked", "tcp", "provenance")
+#: the keys of ``data/trajectories/<name>.npz``, an interface other tools rely on (README,
+#: "The stages")
+NPZ_KEYS = (*TRAJECTORY.keys, PROVENANCE_KEY)
 
 
 @dataclass(frozen=True)
@@ -101,35 +103,36 @@ class TrajectoryParams:
             the baseline the saving of planned travel is reported against, m/s.
     """
 
-    feed_mark_m_s: float = 0.006
-    travel_feed_m_s: float = 0.200
-    accel_rad_s2: float = 7.5
-    speed: float = 1.0
-    max_step_m: float = 0.5e-3
-    corner_radius_m: float = 0.6e-3
-    jerk_rad_s3: float | None = None
-    travel: str = "planned"
-    clearance_mm: float = 8.0
-    home: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0)
-    from_home: bool = True
-    straight_feed_m_s: float = 0.060
+    feed_mark_m_s: float
+    travel_feed_m_s: float
+    accel_rad_s2: float
+    speed: float
+    max_step_m: float
+    corner_radius_m: float
+    jerk_rad_s3: float | None
+    travel: str
+    clearance_mm: float
+    home: tuple[float, ...]
+    from_home: bool
+    straight_feed_m_s: float
 
     @classmethod
-    def from_config(cls, cfg: Any) -> TrajectoryParams:
-        """From the composed config: ``toolpath.feed_mark_mm_s`` (the one marking feed),
-        ``trajectory.*``, root ``speed``; corners below half ``toolpath.pitch_mm``."""
-        tr = cfg.trajectory
+    def from_config(cls, cfg: Config) -> TrajectoryParams:
+        """From the settings: ``toolpath.feed_mark_mm_s`` (the one marking feed),
+        ``trajectory.*``, root ``speed``; corners below half ``toolpath.pitch_mm``. Every
+        value (and default) comes from there: this class holds none of its own."""
+        tr, tp = cfg.trajectory, cfg.toolpath
         return cls(
-            feed_mark_m_s=float(cfg.toolpath.feed_mark_mm_s) / 1000.0,
-            travel_feed_m_s=float(tr.travel_feed_mm_s) / 1000.0,
+            feed_mark_m_s=tp.feed_mark_m_s,
+            travel_feed_m_s=tr.travel_feed_m_s,
             accel_rad_s2=float(tr.accel_rad_s2),
             speed=float(cfg.speed),
-            corner_radius_m=float(cfg.toolpath.pitch_mm) / 2000.0,
-            max_step_m=float(tr.max_step_mm) / 1000.0,
+            corner_radius_m=tp.pitch_m / 2,
+            max_step_m=tr.max_step_m,
             jerk_rad_s3=None if tr.jerk_rad_s3 is None else float(tr.jerk_rad_s3),
-            travel=str(tr.travel), clearance_mm=float(cfg.toolpath.clearance_mm),
+            travel=str(tr.travel), clearance_mm=float(tp.clearance_mm),
             home=tuple(float(v) for v in tr.home), from_home=bool(tr.from_home),
-            straight_feed_m_s=float(cfg.toolpath.feed_travel_mm_s) / 1000.0,
+            straight_feed_m_s=tp.feed_travel_m_s,
         )
 
     def validate(self) -> None:
@@ -201,7 +204,7 @@ class SpeedLimit:
         return self.speed <= self.exact
 
     def message(self) -> str:
-        """The refusal, in the original's words (reference section 3.3)."""
+        """The refusal, in the original's words (docs/original.md, "3.3 Refusals")."""
         unit = "rad/s" if self.quantity == "velocity" else "rad/s^2"
         where = f"panel ({self.uvz_mm[0]:.2f}, {self.uvz_mm[1]:.2f}) mm"
         if self.quantity == "acceleration" and math.isfinite(self.radius_m):
@@ -216,7 +219,7 @@ class SpeedLimit:
         if not self.ok:
             raise SpeedRefused(self)
 
-    def summary(self) -> dict[str, Any]:
+    def summary(self) -> JsonDict:
         """JSON-ready figures (``None`` for an unbounded speed)."""
         finite = math.isfinite(self.exact)
         return {
@@ -375,7 +378,7 @@ class Trajectory:
         """(N-1,) 1 marking, 2 approach, 0 travel."""
         return segment_kinds(self.kind)
 
-    def travel_metrics(self) -> dict[str, Any]:
+    def travel_metrics(self) -> JsonDict:
         """Planned travel: the moves, their time, and the saving over the original's
         straight travel at ``toolpath.feed_travel_mm_s`` (JSON-ready)."""
         hops = [m for m in self.moves if m.kind in ("hop", "lift")]
@@ -399,7 +402,7 @@ class Trajectory:
             "move_time_over_bound_max": worst,
         }
 
-    def metrics(self) -> dict[str, Any]:
+    def metrics(self) -> JsonDict:
         """The stage's metrics (JSON-ready)."""
         seg = self.segment_kinds()
         dt = np.diff(self.t)
@@ -439,28 +442,22 @@ class Trajectory:
             "marking_below_feed_pct": 100.0 * slow_len / mark_len if mark_len > 0 else 0.0,
             "peak_tip_speed_mm_s": float(self.tip_speed.max()) * 1000.0,
             "timelaw_stepped_points": sum(law.stepped for law in self.laws),
-            "timings_s": dict(self.timings_s),
             **self.speed.summary(),
             **self.travel_metrics(),
         }
         return out
 
     def save_npz(self, file: str | Path, provenance: str) -> None:
-        """Write the design section 8 npz (compressed; loads with ``allow_pickle=False``).
+        """Write the trajectory npz, an interface other tools rely on (README, "The stages";
+        compressed; loads with ``allow_pickle=False``):
+        :class:`tattotronix.io.artifacts.TrajectoryRecord`.
 
         Args:
             file: target path (ending in ``.npz``).
-            provenance: a JSON string (:func:`tattotronix.io.provenance.provenance_json`).
+            provenance: a JSON string (:func:`tattotronix.io.artifacts.make_provenance`).
         """
-        json.loads(provenance)  # must be JSON
-        np.savez_compressed(
-            file,
-            joints=np.array(self.joints, dtype=np.str_),
-            t=self.t.astype(np.float64), q=self.q.astype(np.float64),
-            qd=self.qd.astype(np.float64), qdd=self.qdd.astype(np.float64),
-            kind=self.kind.astype(np.int8), marked=self.marked.astype(np.bool_),
-            tcp=self.tcp.astype(np.float64), provenance=np.array(provenance, dtype=np.str_),
-        )
+        TrajectoryRecord(joints=self.joints, t=self.t, q=self.q, qd=self.qd, qdd=self.qdd,
+                         kind=self.kind, marked=self.marked, tcp=self.tcp).save(file, provenance)
 
 
 @dataclass(frozen=True)
@@ -481,24 +478,18 @@ class StoredTrajectory:
     kind: NDArray[np.int8]
     marked: NDArray[np.bool_]
     tcp: Array
-    provenance: dict[str, Any]
+    provenance: JsonDict
 
 
 def load_trajectory(file: str | Path) -> StoredTrajectory:
-    """Read ``data/trajectories/<name>.npz`` (``allow_pickle=False``).
+    """Read ``data/trajectories/<name>.npz`` (:class:`tattotronix.io.artifacts.TrajectoryRecord`).
 
     Raises:
-        TattotronixError: a key is missing.
+        TattotronixError: a key is missing, or the file is unreadable.
     """
-    with np.load(file, allow_pickle=False) as z:
-        missing = [k for k in NPZ_KEYS if k not in z.files]
-        if missing:
-            raise TattotronixError(f"{file} is not a trajectory: missing {missing}; re-run "
-                                   "the 'trajectory' stage")
-        return StoredTrajectory(
-            joints=tuple(str(j) for j in z["joints"]), t=z["t"], q=z["q"], qd=z["qd"],
-            qdd=z["qdd"], kind=z["kind"], marked=z["marked"], tcp=z["tcp"],
-            provenance=json.loads(str(z["provenance"])))
+    r = TrajectoryRecord.load(file)
+    return StoredTrajectory(joints=r.joints, t=r.t, q=r.q, qd=r.qd, qdd=r.qdd, kind=r.kind,
+                            marked=r.marked, tcp=r.tcp, provenance=dict(r.provenance))
 
 
 def _timeable(piece: JointPath, chain: Chain) -> JointPath:
@@ -530,9 +521,9 @@ def _time_piece(piece: JointPath, params: TrajectoryParams,
 
 
 def plan_trajectory(path: JointPath, chain: Chain, limits: JointLimits,
-                    params: TrajectoryParams, *, ik: Mapping[str, Any] | None = None,
+                    params: TrajectoryParams, *, ik: IkOptions | None = None,
                     check_speed: bool = True, planner: TravelPlanner | None = None,
-                    panel_origin_m: Any = (0.0, 0.0, 0.0)) -> Trajectory:
+                    panel_origin_m: ArrayLike = (0.0, 0.0, 0.0)) -> Trajectory:
     """Time an IK path (see the module docstring).
 
     Args:
@@ -540,7 +531,7 @@ def plan_trajectory(path: JointPath, chain: Chain, limits: JointLimits,
         chain: the kinematic model (densify's IK, the tip of the final ``q``).
         limits: joint velocity and acceleration limits.
         params: feeds, speed, densify step, corner radius, travel mode.
-        ik: keyword arguments for the densify IK (``needle_axis``, ``damping``, ...).
+        ik: keyword arguments for the densify IK (``needle_axis``, ``dls_lambda``, ...).
         check_speed: refuse a speed that cannot hold the marking feed.
         planner: plans and checks the travel moves (required for planned travel).
         panel_origin_m: the panel frame's origin in the arm frame (``uvz_mm`` of the

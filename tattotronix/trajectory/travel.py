@@ -29,16 +29,18 @@ Units: m, rad, s.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.errors import TattotronixError
-from tattotronix.kinematics import Chain, solve_path
+from tattotronix.kinematics import Chain, IkOptions, solve_path
 from tattotronix.trajectory.timelaw import JointLimits
+
+if TYPE_CHECKING:
+    from tattotronix.collision.model import CollisionModel
 
 __all__ = ["JointMove", "MoveSamples", "TravelPlanner", "joint_move", "way_home"]
 
@@ -92,7 +94,7 @@ class JointMove:
         return (self.q0 + u[:, None] * d, ud[:, None] * d, udd[:, None] * d)
 
 
-def joint_move(q0: Any, q1: Any, limits: JointLimits) -> JointMove:
+def joint_move(q0: ArrayLike, q1: ArrayLike, limits: JointLimits) -> JointMove:
     """The fastest straight joint-space move between two rests (module docstring).
 
     Raises:
@@ -163,15 +165,15 @@ class TravelPlanner:
         ik: keyword arguments for the lifts' IK.
     """
 
-    def __init__(self, chain: Chain, limits: JointLimits, collision: Any, *, margin_m: float,
-                 resolution_m: float, clearance_z_m: float, lifts_m: list[float],
-                 max_step_m: float, ik: Mapping[str, Any] | None = None):
+    def __init__(self, chain: Chain, limits: JointLimits, collision: CollisionModel | None, *,
+                 margin_m: float, resolution_m: float, clearance_z_m: float,
+                 lifts_m: list[float], max_step_m: float, ik: IkOptions | None = None):
         self.chain, self.limits, self.collision = chain, limits, collision
         self.margin_m, self.resolution_m = margin_m, resolution_m
         self.clearance_z_m = clearance_z_m
         self.lifts_m = [float(h) for h in lifts_m]
         self.max_step_m = max_step_m
-        self.ik = dict(ik or {})
+        self.ik: IkOptions = ik.copy() if ik else {}
 
     # ------------------------------------------------------------------ sampling
     def sample(self, move: JointMove, kind: str) -> MoveSamples:
@@ -201,12 +203,12 @@ class TravelPlanner:
                 return (f"the needle dips {1000 * (self.clearance_z_m - low):.3f} mm below the "
                         "clearance height")
         if s.kind in ("from_home", "to_home") and self.collision is not None and len(s.t) > 1:
-            low = self.collision.pen_lowest_z(s.q)
-            step = np.diff(low) if s.kind == "to_home" else -np.diff(low)
+            lowest = self.collision.pen_lowest_z(s.q)
+            step = np.diff(lowest) if s.kind == "to_home" else -np.diff(lowest)
             if step.min() < -_LOWEST_TOL_M:
                 what = "lowers" if s.kind == "to_home" else "raises then lowers"
                 return f"the move {what} the pen by {-1000 * step.min():.3f} mm"
-            if low.min() < self.clearance_z_m - Z_TOL_M:
+            if lowest.min() < self.clearance_z_m - Z_TOL_M:
                 return "the pen goes below the clearance height"
         if self.collision is not None:
             from tattotronix.collision.check import check_trajectory
@@ -251,7 +253,7 @@ class TravelPlanner:
         return MoveSamples(law.t, qs, law.qd, law.qdd, tip, law.qdd_ends, "lift",
                            law.duration_s, law.duration_s, float(rise))
 
-    def plan(self, q_a: Any, q_b: Any, kind: str, where: str) -> list[MoveSamples]:
+    def plan(self, q_a: ArrayLike, q_b: ArrayLike, kind: str, where: str) -> list[MoveSamples]:
         """The moves from ``q_a`` to ``q_b`` (one, or three with a lift), checked.
 
         Args:
@@ -287,7 +289,7 @@ class TravelPlanner:
             "needs a sampling planner; move the drawing or the home pose)")
 
 
-def way_home(planner: TravelPlanner, q: Any, home: Any) -> list[MoveSamples]:
+def way_home(planner: TravelPlanner, q: ArrayLike, home: ArrayLike) -> list[MoveSamples]:
     """The way home from any pose over the panel: when the tip is below the clearance
     height, straight up (a vertical tip line, IK every ``max_step_m``, timed by the time
     law: the needle leaves the work along itself), then the planned move home."""

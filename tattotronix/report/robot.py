@@ -1,4 +1,8 @@
-"""The robot stage's work: generate URDF and MJCF, load them everywhere, report zero pose."""
+"""The robot stage's work: generate URDF and MJCF, load them everywhere, report zero pose.
+
+The report composes the robot models with the layers above them (the collision pairs, the
+effective inertia of the control layer), so it lives here and not in :mod:`tattotronix.robot`.
+"""
 
 from __future__ import annotations
 
@@ -8,16 +12,16 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
 
+from tattotronix.collision.pairs import body_pairs
 from tattotronix.control.dynamics import effective_inertia
-from tattotronix.robot.description import Geometry, RobotDescription
+from tattotronix.io.jsontypes import JsonDict
+from tattotronix.robot.description import RobotDescription
 from tattotronix.robot.loaders import MujocoArm, PinocchioArm, PybulletArm
 from tattotronix.robot.mjcf import to_mjcf
 from tattotronix.robot.urdf import to_urdf
 
-__all__ = ["RobotModels", "collision_pairs_report", "generate", "geometry_points",
-           "zero_pose_report"]
+__all__ = ["RobotModels", "collision_pairs_report", "generate", "zero_pose_report"]
 
 
 @dataclass(frozen=True)
@@ -26,24 +30,7 @@ class RobotModels:
 
     urdf: str
     mjcf: str
-    report: dict[str, Any]
-
-
-def geometry_points(g: Geometry) -> NDArray[np.float64]:
-    """Points of a link's geometry in its link frame (m): mesh vertices or primitive corners."""
-    if g.kind == "mesh":
-        from tattotronix.robot.stl import read_stl
-
-        assert g.mesh is not None
-        return read_stl(g.mesh).reshape(-1, 3) * g.size + g.origin
-    if g.kind == "box":
-        half = np.asarray(g.size) / 2
-        corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)])
-        return corners * half + g.origin
-    radius, length = g.size
-    ang = np.linspace(0, 2 * np.pi, 32, endpoint=False)
-    ring = np.stack([radius * np.cos(ang), radius * np.sin(ang), np.zeros_like(ang)], axis=1)
-    return np.concatenate([ring - [0, 0, length / 2], ring + [0, 0, length / 2]]) + g.origin
+    report: JsonDict
 
 
 def _agreement(d: RobotDescription, pin: PinocchioArm, others: dict[str, Any],
@@ -68,7 +55,7 @@ def _agreement(d: RobotDescription, pin: PinocchioArm, others: dict[str, Any],
 
 
 def zero_pose_report(d: RobotDescription, urdf: Path, mjcf: Path,
-                     poses: int = 20, seed: int = 0) -> dict[str, Any]:
+                     poses: int = 20, seed: int = 0) -> JsonDict:
     """Zero-pose figures, mass totals, and the loaders' agreement (Pinocchio as reference).
 
     Lengths in the report are mm (``_mm``), masses kg, torques N m, inertias kg m^2.
@@ -80,7 +67,7 @@ def zero_pose_report(d: RobotDescription, urdf: Path, mjcf: Path,
     for link in d.links:
         placement = pin.data.oMf[pin.model.getFrameId(link)]
         for g in d.geometry[link]:
-            pts = geometry_points(g) @ placement.rotation.T + placement.translation
+            pts = g.points() @ placement.rotation.T + placement.translation
             highest = max(highest, float(pts[:, 2].max()))
     m0 = pin.mass_matrix(q0)
     bullet = PybulletArm(urdf, d.gravity)
@@ -112,10 +99,8 @@ def zero_pose_report(d: RobotDescription, urdf: Path, mjcf: Path,
     }
 
 
-def collision_pairs_report(d: RobotDescription) -> dict[str, Any]:
+def collision_pairs_report(d: RobotDescription) -> JsonDict:
     """The allowed (never checked) collision pairs, derived from the tree, with reasons."""
-    from tattotronix.collision.pairs import body_pairs
-
     pairs = body_pairs(d)
     links = [p for p in pairs if not p.environment]
     return {

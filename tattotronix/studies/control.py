@@ -1,0 +1,143 @@
+"""The control study (docs/control.md, "The control study: whole drawing and busiest
+window"; the original's: docs/original.md, "5.6 Published control results"): the four
+controller structures at wn 20, and ``pid_g`` across the bandwidths, each over the whole
+drawing and its busiest window.
+
+Cases: ``study.control.cases`` (name -> structure and wn); a case sweeps
+``controller.structure`` and ``controller.wn`` and is named ``pid_g-wn40``. Stage
+``control`` (``stages/control_study.py``); the machinery is
+:class:`tattotronix.studies.base.ClosedLoopStudy`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from tattotronix.config.schema import Config, StudyConfig
+from tattotronix.plotting import pyplot
+from tattotronix.studies.base import (
+    VERDICT_COLOUR,
+    WINDOWS,
+    Cases,
+    ClosedLoopStudy,
+    setting,
+    window_value,
+)
+
+__all__ = ["STUDY", "ControlStudy"]
+
+_STRUCTURES = ("pid", "pid_g", "pid_g_v", "computed_torque")
+
+
+def _ok(c: Mapping[str, Any]) -> bool:
+    return (c.get("whole") or {}).get("verdict") == "ok"
+
+
+def _worst(c: Mapping[str, Any]) -> float:
+    return window_value(c, "whole", "marking_max_um")
+
+
+class ControlStudy(ClosedLoopStudy):
+    """Controller structure x bandwidth, over the whole drawing and its busiest window."""
+
+    name = "control"
+    keys = ("controller.structure", "controller.wn")
+    windows = (None, "busiest")
+
+    def cases(self, study: StudyConfig) -> dict[str, list[str]]:
+        return {key: [f"controller.structure={setting(case, 'structure')}",
+                      f"controller.wn={case.wn}"]
+                for key, case in study.control.cases.items()}
+
+    def case_name(self, cfg: Config) -> str:
+        return f"{setting(cfg, 'controller.structure')}-wn{float(cfg.controller.wn):g}"
+
+    def figure(self, cases: Cases, path: Path, title: str = "") -> None:
+        """Structures at wn 20 (bars) and the pid_g bandwidth sweep (lines)."""
+        plt = pyplot()
+        fig, axes = plt.subplots(1, 3, figsize=(15, 4.8))
+        at20 = [(s, cases[f"{s}-wn20"]) for s in _STRUCTURES if f"{s}-wn20" in cases]
+        ax = axes[0]
+        width = 0.2
+        for i, (key, label, hatch) in enumerate((("settled_mean_um", "settled mean", ""),
+                                                  ("marking_max_um", "worst marking", "//"))):
+            for j, (win, wlabel, _) in enumerate(WINDOWS):
+                xs = [k + (2 * i + j - 1.5) * width for k in range(len(at20))]
+                ys = [window_value(c, win, key) for _, c in at20]
+                ax.bar(xs, ys, width, label=f"{label}, {wlabel}", hatch=hatch,
+                       color=("#3b6fb6", "#9cbbe3")[j], edgecolor="k", linewidth=0.4)
+        ax.set_xticks(range(len(at20)), [s for s, _ in at20], rotation=15)
+        ax.set_yscale("log")
+        ax.set_ylabel("tip error, um")
+        ax.set_title("structures at wn = 20 rad/s")
+        ax.legend(fontsize=7)
+        ax.grid(True, axis="y", which="both", alpha=0.3)
+
+        sweep = sorted(((float(c["settings"]["controller.wn"]), c) for c in cases.values()
+                        if c["settings"]["controller.structure"] == "pid_g"),
+                       key=lambda x: x[0])
+        wns = [w for w, _ in sweep]
+        ax = axes[1]
+        for win, wlabel, ls in WINDOWS:
+            ax.plot(wns, [window_value(c, win, "settled_mean_um") for _, c in sweep],
+                    "o" + ls, color="#3b6fb6", label=f"settled mean, {wlabel}")
+            ax.plot(wns, [window_value(c, win, "marking_max_um") for _, c in sweep],
+                    "s" + ls, color="#c0392b", label=f"worst marking, {wlabel}")
+        ax.axhline(300, color="0.5", lw=0.8, ls=":")
+        ax.text(wns[0] if wns else 10, 300, " 0.3 mm line", fontsize=7, va="bottom",
+                color="0.4")
+        ax.axhline(20, color="0.5", lw=0.8, ls="-.")
+        ax.text(wns[0] if wns else 10, 20, " 20 um goal", fontsize=7, va="bottom",
+                color="0.4")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("wn, rad/s")
+        ax.set_ylabel("tip error, um")
+        ax.set_title("pid_g across the bandwidth")
+        ax.legend(fontsize=7)
+        ax.grid(True, which="both", alpha=0.3)
+
+        ax = axes[2]
+        for win, wlabel, ls in WINDOWS:
+            ax.plot(wns, [window_value(c, win, "peak_torque_nm") for _, c in sweep],
+                    "o" + ls, color="#6a4c93", label=f"peak torque, {wlabel}")
+            ax.plot(wns, [window_value(c, win, "travel_mean_um") / 1000.0 for _, c in sweep],
+                    "^" + ls, color="#e08a1e", label=f"travel mean (mm), {wlabel}")
+        for w, c in sweep:
+            verdict = (c.get("whole") or {}).get("verdict", "?")
+            if verdict != "ok":
+                ax.annotate(f"{verdict} ", (w, window_value(c, "whole", "peak_torque_nm")),
+                            fontsize=7, color=VERDICT_COLOUR.get(verdict, "k"), ha="right",
+                            va="center")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("wn, rad/s")
+        ax.set_ylabel("N m  /  mm")
+        ax.set_title("pid_g: peak torque and travel error")
+        ax.legend(fontsize=7)
+        ax.grid(True, which="both", alpha=0.3)
+        fig.suptitle(f"Control study{': ' + title if title else ''} (the original's §5.6; MuJoCo, "
+                     "1 kHz loop)")
+        fig.tight_layout()
+        fig.savefig(path, dpi=130)
+        plt.close(fig)
+
+    def summary(self, cases: Cases) -> dict[str, Any]:
+        """The best structure at wn 20 and the best pid_g bandwidth (lowest worst marking
+        error over the whole drawing among the runs that stayed ok)."""
+        at20 = {k: c for k, c in cases.items() if float(c["settings"]["controller.wn"]) == 20}
+        sweep = {k: c for k, c in cases.items()
+                 if c["settings"]["controller.structure"] == "pid_g" and _ok(c)}
+        return {
+            "cases": len(cases),
+            "best_at_wn20": min(at20, key=lambda k: _worst(at20[k])) if at20 else None,
+            "best_pid_g_wn": float(sweep[min(sweep, key=lambda k: _worst(sweep[k]))]
+                                   ["settings"]["controller.wn"]) if sweep else None,
+            "not_ok": sorted(k for k, c in cases.items() if not _ok(c)),
+        }
+
+
+#: the control study
+STUDY = ControlStudy()

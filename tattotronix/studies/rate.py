@@ -1,0 +1,144 @@
+"""The rate study (docs/control.md, "The rate study: the loop rate is the ceiling"; the
+original's: docs/original.md, "5.8 The rate study"): loop rate x bandwidth, the plant at
+4 kHz.
+
+Cases: ``study.rate_hz`` x ``study.rate_wn``; a case sweeps ``controller.rate_hz`` and
+``controller.wn`` with the plant at ``study.rate_plant_dt_s``, is named ``500hz-wn80``,
+runs over the whole drawing and its busiest window, and sets each run's verdict beside the
+computed sampled-loop boundary (:func:`rate_verdict_check`). Stage ``rate``
+(``stages/rate.py``); the machinery is :class:`tattotronix.studies.base.ClosedLoopStudy`.
+"""
+
+from __future__ import annotations
+
+import textwrap
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from tattotronix.config.schema import Config, StudyConfig
+from tattotronix.control.drawing import ClosedLoop
+from tattotronix.plotting import pyplot
+from tattotronix.studies.base import VERDICT_COLOUR, Cases, ClosedLoopStudy, int_label
+
+__all__ = ["STUDY", "RateStudy", "rate_verdict_check"]
+
+
+def rate_verdict_check(loop: ClosedLoop) -> dict[str, Any]:
+    """The run's verdict beside the computed sampled-loop boundary (docs/original.md, "5.4
+    Loop facts" and "5.8 The rate study").
+
+    ``boundary_wnT`` is 2/(3 lambda_max) (exact hold), ``boundary_numeric_wnT`` the same
+    loop with the plant's Euler sub-steps; ``predicted`` is ``ok`` below the latter.
+    """
+    a = loop.analysis
+    predicted = "ok" if a["wnT"] < a["sampled_boundary_numeric_wnT"] else "fail"
+    return {"wnT": a["wnT"], "boundary_wnT": a["sampled_boundary_wnT"],
+            "boundary_numeric_wnT": a["sampled_boundary_numeric_wnT"],
+            "lambda_max": a["modal_gain"][0], "substeps": loop.run.substeps,
+            "predicted": predicted, "verdict": loop.run.verdict,
+            "agrees": (loop.run.verdict == "ok") == (predicted == "ok")}
+
+
+class RateStudy(ClosedLoopStudy):
+    """Loop rate x bandwidth: each verdict against the computed boundary."""
+
+    name = "rate"
+    keys = ("controller.rate_hz", "controller.wn")
+    windows = (None, "busiest")
+
+    def cases(self, study: StudyConfig) -> dict[str, list[str]]:
+        return {f"{r}hz-wn{w}": [f"controller.rate_hz={r}", f"controller.wn={w}"]
+                for r in study.rate_hz for w in study.rate_wn}
+
+    def case_name(self, cfg: Config) -> str:
+        return (f"{int_label(float(cfg.controller.rate_hz))}hz-"
+                f"wn{int_label(float(cfg.controller.wn))}")
+
+    def plant_dt_s(self, cfg: Config) -> float | None:
+        return float(cfg.study.rate_plant_dt_s)
+
+    def window_metrics(self, loop: ClosedLoop) -> dict[str, Any]:
+        return {"boundary": rate_verdict_check(loop)}
+
+    def case_metrics(self, cfg: Config, name: str,
+                     windows: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+        # the first window's (the whole drawing)
+        return {"verdict_check": next(iter(windows.values()))["boundary"]}
+
+    def figure(self, cases: Cases, path: Path, title: str = "") -> None:
+        """The rate x bandwidth grid coloured by verdict, and each run's wn T against the
+        computed boundary."""
+        plt = pyplot()
+        rates = sorted({float(c["settings"]["controller.rate_hz"]) for c in cases.values()})
+        wns = sorted({float(c["settings"]["controller.wn"]) for c in cases.values()})
+        fig, (ax, bx) = plt.subplots(1, 2, figsize=(14, 5),
+                                     gridspec_kw={"width_ratios": [1.1, 1]})
+        for c in cases.values():
+            i = rates.index(float(c["settings"]["controller.rate_hz"]))
+            j = wns.index(float(c["settings"]["controller.wn"]))
+            chk = c["verdict_check"]
+            verdict = chk["verdict"]
+            ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1,
+                                       color=VERDICT_COLOUR.get(verdict, "0.7"), alpha=0.75))
+            w = c.get("whole") or {}
+            if verdict == "ok":
+                body = (f"settled {w.get('settled_mean_um', float('nan')):.2f} um\n"
+                        f"worst {w.get('marking_max_um', float('nan')):.1f} um\n"
+                        f"peak {w.get('peak_torque_nm', float('nan')):.3f} N m")
+            else:
+                body = textwrap.fill(str(w.get("reason", "")).split(" (")[0], 30)
+            ax.text(j, i, f"{verdict}  (wn T {chk['wnT']:.2f})\n{body}", ha="center",
+                    va="center", fontsize=7)
+        ax.set_xlim(-0.5, len(wns) - 0.5)
+        ax.set_ylim(-0.5, len(rates) - 0.5)
+        ax.set_xticks(range(len(wns)), [f"{w:g}" for w in wns])
+        ax.set_yticks(range(len(rates)), [f"{r:g}" for r in rates])
+        ax.set_xlabel("wn, rad/s")
+        ax.set_ylabel("loop rate, Hz")
+        ax.set_title("whole drawing, plant at 4 kHz")
+
+        for c in cases.values():
+            chk = c["verdict_check"]
+            r = float(c["settings"]["controller.rate_hz"])
+            bx.scatter(chk["wnT"], r, s=80, color=VERDICT_COLOUR.get(chk["verdict"], "0.5"),
+                       edgecolor="k", zorder=3)
+            bx.plot([chk["boundary_numeric_wnT"]] * 2, [r * 0.85, r * 1.15], color="k", lw=2)
+        if cases:
+            b = next(iter(cases.values()))["verdict_check"]["boundary_wnT"]
+            bx.axvline(b, color="0.3", ls="--", lw=1)
+            bx.text(b, rates[0] * 0.72, f" exact hold: 2/(3 lambda_max) = {b:.3f}",
+                    fontsize=8)
+        for v, col in VERDICT_COLOUR.items():
+            bx.scatter([], [], color=col, edgecolor="k", label=v)
+        bx.plot([], [], color="k", lw=2, label="boundary with the plant's Euler sub-steps")
+        from matplotlib.ticker import NullFormatter
+
+        bx.set_yscale("log")
+        bx.set_xscale("log")
+        bx.set_ylim(rates[0] * 0.6, rates[-1] * 1.4) if rates else None
+        bx.set_yticks(rates, [f"{r:g}" for r in rates])
+        bx.yaxis.set_minor_formatter(NullFormatter())
+        ticks = sorted({round(float(c["verdict_check"]["wnT"]), 2) for c in cases.values()})
+        bx.set_xticks(ticks, [f"{t:g}" for t in ticks])
+        bx.xaxis.set_minor_formatter(NullFormatter())
+        bx.set_xlabel("wn T")
+        bx.set_ylabel("loop rate, Hz")
+        bx.set_title("verdict against the computed sampled-loop boundary")
+        bx.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+        bx.grid(True, which="both", alpha=0.3)
+        fig.suptitle(f"Rate study{': ' + title if title else ''} (the original's §5.8; pid_g_v)")
+        fig.tight_layout()
+        fig.savefig(path, dpi=130)
+        plt.close(fig)
+
+    def summary(self, cases: Cases) -> dict[str, Any]:
+        """How many verdicts agree with the computed boundary, and how many are ok."""
+        checks = [c["verdict_check"] for c in cases.values()]
+        return {"cases": len(cases), "agree": sum(bool(k["agrees"]) for k in checks),
+                "ok": sum(k["verdict"] == "ok" for k in checks),
+                "boundary_wnT": checks[0]["boundary_wnT"]}
+
+
+#: the rate study
+STUDY = RateStudy()

@@ -1,0 +1,55 @@
+"""Every closed-loop study by name, and what the ``studies`` stage makes of them all.
+
+Each study is one module holding its :class:`~tattotronix.studies.base.ClosedLoopStudy`
+(``STUDY``); this is the one list of them (a study's own stage imports only its module).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from tattotronix.studies import approach, control, rate, resample
+from tattotronix.studies.base import ClosedLoopStudy
+
+__all__ = ["STUDIES", "study_figures", "study_summary"]
+
+#: study name -> study, in the order the figures are drawn and summarised
+STUDIES: dict[str, ClosedLoopStudy] = {
+    m.STUDY.name: m.STUDY for m in (control, approach, resample, rate)}
+
+
+def study_figures(data: Path, name: str, folder: Path,
+                  tmp: Any = None) -> dict[str, Path]:
+    """Draw every closed-loop study's figure that has cases on ``name``.
+
+    Args:
+        data: the data folder.
+        name: the artwork.
+        folder: where the PNGs go (``<study>.png``).
+        tmp: maps a target path to the path to write (``Outputs.tmp_path``); default:
+            write the target itself.
+
+    Returns:
+        study -> the target path written.
+    """
+    written: dict[str, Path] = {}
+    for study in STUDIES.values():
+        cases = study.load_cases(data, name)
+        if not cases:
+            continue
+        target = folder / f"{study.name}.png"
+        study.figure(cases, tmp(target) if tmp is not None else target, name)
+        written[study.name] = target
+    return written
+
+
+def study_summary(data: Path, name: str) -> dict[str, Any]:
+    """What each closed-loop study with cases on ``name`` concludes (study -> its
+    :meth:`~tattotronix.studies.base.ClosedLoopStudy.summary`; JSON-ready)."""
+    out: dict[str, Any] = {}
+    for study in STUDIES.values():
+        cases = study.load_cases(data, name)
+        if cases:
+            out[study.name] = study.summary(cases)
+    return out
