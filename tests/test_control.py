@@ -351,3 +351,11 @@ def test_stored_drawing_is_played_as_is_and_retimed_for_another_speed(
     assert fast.origin == "retimed" and fast.t[-1] < 0.75 * tr.t[-1]
     with pytest.raises(TattotronixError, match="available are small, emblem, portrait"):
         resolve_drawing(compose_settings(["art=other"]), tmp_path, desc)
+
+
+def test_every_simulated_backend_of_the_config_has_a_plant() -> None:
+    """``backend=`` is checked by the config schema; the factory builds each of those
+    (all but the real arm), and nothing else."""
+    from tattotronix.config.schema import Backend
+
+    assert set(BACKENDS) == {b.value for b in Backend} - {"arm"}

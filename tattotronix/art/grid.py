@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
+from tattotronix.io.npz import save_npz
+
 __all__ = ["InkMask"]
 
 
@@ -43,7 +45,7 @@ class InkMask:
 
     def save(self, path: Path) -> None:
         """Write as an uncompressed-safe npz (no pickles)."""
-        np.savez_compressed(path, ink=self.ink, res_mm=self.res_mm, xs=self.xs, ys=self.ys)
+        save_npz(path, {"ink": self.ink, "res_mm": self.res_mm, "xs": self.xs, "ys": self.ys})
 
     @classmethod
     def load(cls, path: Path) -> InkMask:

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
-from typing import Any
+from typing import TypedDict
 
 import control
 import numpy as np
@@ -37,6 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
 
 __all__ = [
+    "LoopReport",
     "coupled_zeta_min",
     "loop_report",
     "modal_gains",
@@ -322,8 +323,34 @@ def step_overshoot_pct(derivative_on_error: bool) -> float:
 # ------------------------------------------------------------------------------ report
 
 
+class LoopReport(TypedDict):
+    """The loop facts at one pose (:func:`loop_report`), JSON-ready (plain floats)."""
+
+    #: the modal gains lam (dimensionless), descending
+    modal_gain: list[float]
+    #: the smallest damping ratio over the modes (dimensionless)
+    coupled_zeta_min: float
+    #: the sampled-loop boundary of wn T at lam_max, closed form (exact hold)
+    sampled_boundary_wnT: float
+    #: the same, found numerically with the plant's sub-steps
+    sampled_boundary_numeric_wnT: float
+    #: wn T of the loop (dimensionless)
+    wnT: float
+    #: the numeric boundary over wn T
+    margin: float
+    #: the gains: N m/rad, N m/(rad s), N m s/rad
+    kp: list[float]
+    ki: list[float]
+    kd: list[float]
+    #: the inertias the gains were placed on (kg m^2)
+    j_eff: list[float]
+    #: step overshoot of the single axis, PI-D and PID (%)
+    step_overshoot_single_axis_pct: float
+    step_overshoot_ff_pct: float
+
+
 def loop_report(mass_matrix: ArrayLike, j_eff: ArrayLike, wn: float, rate_hz: float,
-                substeps: int | None = None) -> dict[str, Any]:
+                substeps: int | None = None) -> LoopReport:
     """The loop facts (docs/original.md, "5.4 Loop facts") at one pose, JSON-ready (plain
     floats).
 

@@ -27,7 +27,7 @@ from numpy.typing import NDArray
 
 from tattotronix.art.artwork import BUILTINS, artwork_name
 from tattotronix.config.schema import Config, to_dict
-from tattotronix.control.analysis import loop_report
+from tattotronix.control.analysis import LoopReport, loop_report
 from tattotronix.control.controller import Controller, Gains
 from tattotronix.control.dynamics import Dynamics
 from tattotronix.control.ink import compare_ink, ink_grid, rasterise_ink
@@ -243,7 +243,7 @@ class ClosedLoop:
     drawing: Drawing
     run: Run
     controller: Controller
-    analysis: dict[str, Any]
+    analysis: LoopReport
     window: tuple[float, float]
     sample_every: int
     backend: str

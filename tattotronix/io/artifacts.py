@@ -57,6 +57,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.errors import StageInputMissing, TattotronixError
 from tattotronix.io.jsontypes import JsonDict, JsonValue
+from tattotronix.io.npz import save_npz
 from tattotronix.io.provenance import code_version, plain_config, provenance_json
 
 __all__ = [
@@ -230,7 +231,7 @@ class ArtifactSpec:
                         else np.asarray(value) if dtype is None
                         else np.asarray(value).astype(dtype))
         out[PROVENANCE_KEY] = np.array(provenance, dtype=np.str_)
-        np.savez_compressed(file, **out)
+        save_npz(file, out)
 
     def read(self, file: str | Path, keys: Sequence[str] | None = None,
              where: Mapping[str, str] | None = None,

@@ -13,20 +13,27 @@ from typing import Any
 
 from tattotronix.io.jsontypes import JsonDict
 
-__all__ = ["code_version", "config_sha256", "file_sha256", "plain_config", "provenance_json"]
+__all__ = ["CODE_PATHS", "code_version", "config_sha256", "file_sha256", "plain_config",
+           "provenance_json"]
 
 _ROOT = Path(__file__).resolve().parents[2]
 
 
+#: what "the code" is: a change elsewhere (dvc.lock, metrics, documents) is not a change
+#: of the code, and DVC rewrites some of those while a pipeline runs
+CODE_PATHS = ("tattotronix", "stages", "hydra_plugins", "pyproject.toml")
+
+
 def code_version(root: Path | None = None) -> str:
-    """The git commit of the code (with ``-dirty`` when the tree has changes), or unknown."""
+    """The git commit of the code (with ``-dirty`` when a tracked file under
+    :data:`CODE_PATHS` has changes), or ``unknown`` outside a git checkout."""
     root = root or _ROOT
     try:
         rev = subprocess.run(
             ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=True
         ).stdout.strip()
         dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no"],
+            ["git", "status", "--porcelain", "--untracked-files=no", "--", *CODE_PATHS],
             cwd=root, capture_output=True, text=True, check=True,
         ).stdout.strip()
         return rev + ("-dirty" if dirty else "")

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 from numpy.typing import ArrayLike
@@ -12,8 +13,46 @@ from tattotronix.plants.base import Plant, PlantSettings
 
 __all__ = ["BACKENDS", "make_plant"]
 
+
+@dataclass(frozen=True)
+class _Models:
+    """What a backend may build from: the generated models and the joint limits."""
+
+    urdf: Path
+    mjcf: Path
+    lower: ArrayLike
+    upper: ArrayLike
+    viewer: bool
+
+
+def _model(m: _Models, settings: PlantSettings) -> Plant:
+    from tattotronix.plants.model import ModelPlant
+
+    return ModelPlant(m.urdf, settings, lower=m.lower, upper=m.upper)
+
+
+def _mujoco(m: _Models, settings: PlantSettings) -> Plant:
+    from tattotronix.plants.mujoco_plant import MujocoPlant
+
+    return MujocoPlant(m.mjcf, settings, viewer=m.viewer)
+
+
+def _pybullet(m: _Models, settings: PlantSettings) -> Plant:
+    from tattotronix.plants.pybullet_plant import PybulletPlant
+
+    return PybulletPlant(m.urdf, settings, viewer=m.viewer)
+
+
+#: backend name -> builder (the engine is imported only when its backend is asked for).
+#: A new backend is its module, one line here and its name in ``config.schema.Backend``.
+_BUILDERS: dict[str, Callable[[_Models, PlantSettings], Plant]] = {
+    "mujoco": _mujoco,
+    "pybullet": _pybullet,
+    "model": _model,
+}
+
 #: the simulated backends (``draw.py backend=...``)
-BACKENDS = ("mujoco", "pybullet", "model")
+BACKENDS = tuple(_BUILDERS)
 
 
 def make_plant(backend: str, settings: PlantSettings, *, urdf: Path, mjcf: Path,
@@ -22,7 +61,7 @@ def make_plant(backend: str, settings: PlantSettings, *, urdf: Path, mjcf: Path,
     """Build a plant from the generated models.
 
     Args:
-        backend: ``model``, ``mujoco`` or ``pybullet``.
+        backend: one of :data:`BACKENDS` (``mujoco``, ``pybullet``, ``model``).
         settings: the plant settings.
         urdf, mjcf: the generated models (``data/robot/<name>.urdf`` / ``.xml``).
         joint_names: the joints, base outward (checked against each model).
@@ -33,22 +72,11 @@ def make_plant(backend: str, settings: PlantSettings, *, urdf: Path, mjcf: Path,
         TattotronixError: an unknown backend, or a setting the backend cannot honour.
     """
     name = str(getattr(backend, "name", backend))
-    if name not in BACKENDS:
+    build = _BUILDERS.get(name)
+    if build is None:
         raise TattotronixError(f"unknown backend '{name}': use one of {', '.join(BACKENDS)} "
                                "(the real arm is backend=arm)")
-    plant: Plant
-    if name == "model":
-        from tattotronix.plants.model import ModelPlant
-
-        plant = ModelPlant(urdf, settings, lower=lower, upper=upper)
-    elif name == "mujoco":
-        from tattotronix.plants.mujoco_plant import MujocoPlant
-
-        plant = MujocoPlant(mjcf, settings, viewer=viewer)
-    else:
-        from tattotronix.plants.pybullet_plant import PybulletPlant
-
-        plant = PybulletPlant(urdf, settings, viewer=viewer)
+    plant = build(_Models(urdf, mjcf, lower, upper, viewer), settings)
     got = tuple(getattr(plant, "joint_names", ()))
     if got != tuple(joint_names):
         plant.close()

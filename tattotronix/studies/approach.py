@@ -10,13 +10,14 @@ re-planned in memory) and is named ``4.0mm``; it runs over the whole drawing. St
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
 
 from tattotronix.config.schema import Config, StudyConfig
+from tattotronix.io.jsontypes import JsonDict
 from tattotronix.plotting import pyplot
 from tattotronix.studies.base import (
     Cases,
     ClosedLoopStudy,
+    finish_figure,
     log_axes_with_twin,
     sorted_by,
     window_value,
@@ -52,17 +53,14 @@ class ApproachStudy(ClosedLoopStudy):
                 color="#3b6fb6", label="settled mean")
         log_axes_with_twin(ax, "approach length (last stretch of each plunge at the "
                            "marking feed), mm", "tip error, um", a,
-                           [float(c["drawing"]["duration_s"]) for _, c in rows],
+                           [c.number("drawing", "duration_s") for _, c in rows],
                            "cycle time", "cycle time, s", "upper center")
-        ctl = next(iter(cases.values()))["controller"] if cases else {}
-        fig.suptitle(f"Approach study{': ' + title if title else ''} (the original's §5.7; whole "
-                     f"drawing, {ctl.get('structure', '?')} at wn {ctl.get('wn', '?')} "
-                     "rad/s)")
-        fig.tight_layout()
-        fig.savefig(path, dpi=130)
-        plt.close(fig)
+        ctl = next(iter(cases.values())).section("controller") if cases else {}
+        finish_figure(fig, path, "Approach", title,
+                      f"the original's §5.7; whole drawing, {ctl.get('structure', '?')} at wn "
+                      f"{ctl.get('wn', '?')} rad/s")
 
-    def summary(self, cases: Cases) -> dict[str, Any]:
+    def summary(self, cases: Cases) -> JsonDict:
         """The shortest approach whose worst entry error is within 10 % of the best."""
         rows = sorted_by(cases, "toolpath.approach_mm")
         best = min(window_value(c, "whole", "entry_max_um") for _, c in rows)

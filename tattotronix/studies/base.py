@@ -18,7 +18,8 @@ states:
 * :meth:`~ClosedLoopStudy.plant_dt_s`, :meth:`~ClosedLoopStudy.window_metrics` and
   :meth:`~ClosedLoopStudy.case_metrics`: what the study changes or adds to a case;
 * :meth:`~ClosedLoopStudy.figure` and :meth:`~ClosedLoopStudy.summary`: its figure and
-  its conclusions, from the stored cases (the ``studies`` stage).
+  its conclusions, from the stored cases (the ``studies`` stage), each read back as a
+  :class:`StudyCase`.
 
 The machinery lives here, once: :meth:`ClosedLoopStudy.run_case` plays the drawing closed
 loop (:func:`tattotronix.control.drawing.run_closed_loop`, the plant of ``backend``) over
@@ -48,9 +49,10 @@ import json
 import logging
 import math
 from abc import ABC, abstractmethod
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -59,18 +61,94 @@ from tattotronix.art.artwork import artwork_name
 from tattotronix.config.schema import Config, StudyConfig
 from tattotronix.control.drawing import ClosedLoop, Drawing, resolve_drawing, run_closed_loop
 from tattotronix.control.tracking import entry_times
+from tattotronix.errors import ConfigError
 from tattotronix.io.artifacts import StudySeriesRecord, make_provenance
+from tattotronix.io.jsontypes import JsonDict, JsonValue
 from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain
+from tattotronix.plotting import pyplot
 from tattotronix.robot.description import RobotDescription, build_description
 
-__all__ = ["VERDICT_COLOUR", "WINDOWS", "Cases", "ClosedLoopStudy", "int_label",
-           "load_cases", "log_axes_with_twin", "setting", "sorted_by", "window_value"]
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
+__all__ = ["VERDICT_COLOUR", "WINDOWS", "Cases", "ClosedLoopStudy", "LegendLoc", "StudyCase",
+           "finish_figure", "int_label", "load_cases", "log_axes_with_twin", "setting",
+           "sorted_by", "window_value"]
 
 log = logging.getLogger("tattotronix.studies")
 
-#: a study's stored cases on one artwork: case name -> metrics
-Cases = Mapping[str, Mapping[str, Any]]
+
+@dataclass(frozen=True, eq=False)  # equal as mappings are
+class StudyCase(Mapping[str, JsonValue]):
+    """One stored case of a study, as read back from its metrics file
+    (``data/metrics/<study>/<name>/<case>.json``, what :meth:`ClosedLoopStudy.run_case`
+    writes): a read-only mapping of the file's JSON, with typed accessors.
+
+    The file holds ``study``, ``name``, ``case``, ``backend``, ``plant_dt_s`` and the
+    sections ``settings`` (swept key -> value), ``drawing``, ``controller``, ``loop``, one
+    section per window run (``whole``, ``busiest``: the tracking metrics) and those a
+    study adds (``chord``, ``verdict_check``).
+    """
+
+    #: the parsed JSON of the case file
+    metrics: Mapping[str, JsonValue]
+
+    @classmethod
+    def load(cls, path: Path) -> StudyCase:
+        """Read a case file.
+
+        Raises:
+            ValueError: the file does not hold a JSON object.
+        """
+        obj = json.loads(path.read_text())
+        if not isinstance(obj, dict):
+            raise ValueError(f"{path}: a study case file holds a JSON object, not "
+                             f"{type(obj).__name__}")
+        return cls(obj)
+
+    def __getitem__(self, key: str) -> JsonValue:
+        return self.metrics[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.metrics)
+
+    def __len__(self) -> int:
+        return len(self.metrics)
+
+    def section(self, key: str) -> Mapping[str, JsonValue]:
+        """A section of the case (``whole``, ``busiest``, ``settings``, ``drawing``,
+        ``controller``, ``chord``, ``verdict_check``, ...); empty where it is missing or
+        null (a window that did not run)."""
+        value = self.metrics.get(key)
+        return value if isinstance(value, Mapping) else {}
+
+    def number(self, section: str, key: str) -> float:
+        """A number of a section (NaN where the section or the number is missing or null,
+        as a metric that had none is stored).
+
+        Raises:
+            ValueError: the value is not a number.
+        """
+        return _as_float(self.section(section).get(key), f"{section}.{key}", math.nan)
+
+    def text(self, section: str, key: str, default: str = "?") -> str:
+        """A value of a section as text (``default`` where it is missing or null)."""
+        value = self.section(section).get(key)
+        return default if value is None else str(value)
+
+    def setting(self, key: str) -> float:
+        """A swept setting of the case, as a number (``controller.wn``: 40.0).
+
+        Raises:
+            ValueError: the case has no such setting, or it is not a number.
+        """
+        return _as_float(self.section("settings").get(key), f"settings.{key}")
+
+
+#: a study's stored cases on one artwork: case name -> the case
+Cases = Mapping[str, StudyCase]
 
 #: metrics of a run that depend on the machine, not on the physics (left out of studies)
 _WALL_KEYS = ("wall_s", "realtime_factor")
@@ -109,12 +187,12 @@ class ClosedLoopStudy(ABC):
         """The plant's step for this study's runs; None: ``plant.dt_s``."""
         return None
 
-    def window_metrics(self, loop: ClosedLoop) -> dict[str, Any]:
+    def window_metrics(self, loop: ClosedLoop) -> JsonDict:
         """Metrics added to each window's (empty by default)."""
         return {}
 
     def case_metrics(self, cfg: Config, name: str,
-                     windows: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+                     windows: Mapping[str, Mapping[str, JsonValue]]) -> JsonDict:
         """Metrics added to the case's, given each window's (label -> metrics; empty by
         default)."""
         return {}
@@ -124,12 +202,12 @@ class ClosedLoopStudy(ABC):
         """Draw the study's figure from its cases on one artwork; save it as a PNG."""
 
     @abstractmethod
-    def summary(self, cases: Cases) -> dict[str, Any]:
+    def summary(self, cases: Cases) -> JsonDict:
         """What the study concludes from its cases on one artwork (JSON-ready)."""
 
     # --- the shared machinery ---------------------------------------------------------
 
-    def run_case(self, cfg: Config, out: Outputs) -> dict[str, Any]:
+    def run_case(self, cfg: Config, out: Outputs) -> JsonDict:
         """Run the case ``cfg`` describes; write its metrics and series.
 
         Returns:
@@ -146,10 +224,10 @@ class ClosedLoopStudy(ABC):
         drawing = resolve_drawing(cfg, out.data, desc)
         plant_dt = self.plant_dt_s(cfg)
         settle = float(cfg.draw.settle_periods)
-        windows: dict[str, Any] = {}
+        windows: dict[str, JsonDict] = {}
         series: dict[str, NDArray[Any]] = {}
-        analysis: dict[str, Any] = {}
-        controller: dict[str, Any] = {}
+        analysis: Mapping[str, object] = {}  # the loop facts (a LoopReport)
+        controller: JsonDict = {}
         for window in self.windows:
             label = "whole" if window is None else str(window)
             loop = run_closed_loop(cfg, out.data, desc, drawing, window=window,
@@ -163,7 +241,7 @@ class ClosedLoopStudy(ABC):
             log.info("%s %s %s (%s): %s; settled %s / marking max %s um, peak %.3f N m",
                      self.name, name, case, label, m["verdict"], _fmt(m["settled_mean_um"]),
                      _fmt(m["marking_max_um"]), m["peak_torque_nm"])
-        metrics: dict[str, Any] = {
+        record: dict[str, object] = {
             "study": self.name, "name": name, "case": case,
             "backend": str(setting(cfg, "backend")),
             "settings": {k: setting(cfg, k) for k in self.keys},
@@ -171,8 +249,8 @@ class ClosedLoopStudy(ABC):
             "drawing": _drawing_figures(drawing),
             "controller": controller, "loop": analysis, **windows,
         }
-        metrics.update(self.case_metrics(cfg, name, windows))
-        metrics = _json_ready(metrics)
+        record.update(self.case_metrics(cfg, name, windows))
+        metrics = _json_dict(record)
         out.write_json(out.path("metrics", self.name, name, f"{case}.json"), metrics)
         StudySeriesRecord(series).save(
             out.tmp_path(StudySeriesRecord.path(out.data, self.name, name, case)),
@@ -184,25 +262,33 @@ class ClosedLoopStudy(ABC):
         ``run_stage(STUDY.name, STUDY.stage_body)`` (:func:`tattotronix.stage.run_stage`)."""
         self.run_case(cfg, out)
 
-    def load_cases(self, data: Path, name: str) -> dict[str, dict[str, Any]]:
+    def load_cases(self, data: Path, name: str) -> dict[str, StudyCase]:
         """Every stored case of this study on one artwork: case name -> metrics."""
         return load_cases(data, self.name, name)
 
 
-def load_cases(data: Path, study: str, name: str) -> dict[str, dict[str, Any]]:
-    """Every stored case of a study on one artwork: case name -> metrics."""
+def load_cases(data: Path, study: str, name: str) -> dict[str, StudyCase]:
+    """Every stored case of a study on one artwork: case name -> the case."""
     folder = data / "metrics" / study / name
-    return {p.stem: json.loads(p.read_text()) for p in sorted(folder.glob("*.json"))}
+    return {p.stem: StudyCase.load(p) for p in sorted(folder.glob("*.json"))}
 
 
 # --- config values -----------------------------------------------------------------------
 
-def setting(cfg: Any, dotted: str) -> Any:
-    """The config value at a dotted key (an enum as its name)."""
-    node = cfg
+def setting(cfg: Config, dotted: str) -> str | float | bool | None:
+    """The config value at a dotted key (an enum as its name).
+
+    Raises:
+        ConfigError: the key names a section or a list, not one value.
+    """
+    node: object = cfg
     for part in dotted.split("."):
         node = getattr(node, part)
-    return getattr(node, "name", node)
+    value = getattr(node, "name", node)
+    if value is None or isinstance(value, str | int | float | bool):
+        return value
+    raise ConfigError(f"{dotted} is not one value (a {type(value).__name__}): a study "
+                      "records single settings")
 
 
 def int_label(v: float) -> str:
@@ -212,13 +298,13 @@ def int_label(v: float) -> str:
 
 # --- one case ----------------------------------------------------------------------------
 
-def _drawing_figures(d: Drawing) -> dict[str, Any]:
+def _drawing_figures(d: Drawing) -> JsonDict:
     return {"points": int(len(d.t)), "duration_s": float(d.t[-1]),
             "entries": int(len(entry_times(d.t, d.kind))), "origin": d.origin}
 
 
 def _window_metrics(loop: ClosedLoop, chain: Chain, settle_periods: float
-                    ) -> tuple[dict[str, Any], dict[str, NDArray[Any]]]:
+                    ) -> tuple[JsonDict, dict[str, NDArray[Any]]]:
     err = loop.errors(chain, settle_periods)
     m = loop.metrics(err)
     for k in (*_WALL_KEYS, "loop", "controller", "name", "backend", "drawing"):
@@ -229,20 +315,37 @@ def _window_metrics(loop: ClosedLoop, chain: Chain, settle_periods: float
     return m, series
 
 
-def _json_ready(obj: Any) -> Any:
+def _json_dict(obj: Mapping[str, object]) -> JsonDict:
+    return {str(k): _json_ready(v) for k, v in obj.items()}
+
+
+def _json_ready(obj: object) -> JsonValue:
+    """``obj`` as plain JSON: string keys, lists, Python numbers, non-finite floats as
+    None."""
     if isinstance(obj, dict):
-        return {str(k): _json_ready(v) for k, v in obj.items()}
+        return _json_dict(obj)
     if isinstance(obj, list | tuple):
         return [_json_ready(v) for v in obj]
     if isinstance(obj, np.generic):
         return _json_ready(obj.item())
     if isinstance(obj, float) and not math.isfinite(obj):
         return None
-    return obj
+    if obj is None or isinstance(obj, str | int | float):
+        return obj
+    raise TypeError(f"not a JSON value: {obj!r}")
 
 
-def _fmt(v: float | None) -> str:
-    return "-" if v is None else f"{v:.2f}"
+def _as_float(value: JsonValue, what: str, missing: float | None = None) -> float:
+    """A stored number as a float (``missing`` where it is null or absent; None: refuse)."""
+    if value is None and missing is not None:
+        return missing
+    if isinstance(value, int | float | str):
+        return float(value)
+    raise ValueError(f"{what}: {value!r} is not a number")
+
+
+def _fmt(v: object) -> str:
+    return f"{v:.2f}" if isinstance(v, int | float) else "-"
 
 
 # --- what the figures share ----------------------------------------------------------------
@@ -251,24 +354,34 @@ def _fmt(v: float | None) -> str:
 WINDOWS = (("whole", "whole drawing", "-"), ("busiest", "busiest window", "--"))
 #: a run's verdict -> its colour
 VERDICT_COLOUR = {"ok": "#2a9d55", "saturated": "#e08a1e", "diverged": "#c0392b"}
+#: where a legend goes on the axes (matplotlib's ``loc``)
+LegendLoc = Literal["best", "upper right", "upper left", "lower left", "lower right", "right",
+                    "center left", "center right", "lower center", "upper center", "center"]
 
 
-def window_value(case: Mapping[str, Any], window: str, key: str) -> float:
+def window_value(case: StudyCase, window: str, key: str) -> float:
     """A window's metric of a case (NaN where the window or the metric is missing)."""
-    w = case.get(window) or {}
-    val = w.get(key)
-    return float("nan") if val is None else float(val)
+    return case.number(window, key)
 
 
-def sorted_by(cases: Cases, key: str) -> list[tuple[float, Mapping[str, Any]]]:
+def sorted_by(cases: Cases, key: str) -> list[tuple[float, StudyCase]]:
     """(setting, case) pairs, ascending in one swept setting."""
-    return sorted(((float(c["settings"][key]), c) for c in cases.values()),
-                  key=lambda x: x[0])
+    return sorted(((c.setting(key), c) for c in cases.values()), key=lambda x: x[0])
 
 
-def log_axes_with_twin(ax: Any, xlabel: str, ylabel: str, x: list[float],
+def finish_figure(fig: Figure, path: Path, study: str, title: str, about: str) -> None:
+    """Title a study figure ("<Study> study: <title> (<about>)"), lay it out, write it to
+    ``path`` and close it."""
+    plt = pyplot()
+    fig.suptitle(f"{study} study{': ' + title if title else ''} ({about})")
+    fig.tight_layout()
+    fig.savefig(path, dpi=130)
+    plt.close(fig)
+
+
+def log_axes_with_twin(ax: Axes, xlabel: str, ylabel: str, x: list[float],
                        twin_y: list[float], twin_label: str, twin_ylabel: str,
-                       legend_loc: str) -> None:
+                       legend_loc: LegendLoc) -> None:
     """Log-scale errors on ``ax``, a dotted cost curve on a twin axis, one legend."""
     ax.set_yscale("log")
     ax.set_xlabel(xlabel)

@@ -11,17 +11,18 @@ Cases: ``study.control.cases`` (name -> structure and wn); a case sweeps
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 from tattotronix.config.schema import Config, StudyConfig
+from tattotronix.io.jsontypes import JsonDict
 from tattotronix.plotting import pyplot
 from tattotronix.studies.base import (
     VERDICT_COLOUR,
     WINDOWS,
     Cases,
     ClosedLoopStudy,
+    StudyCase,
+    finish_figure,
     setting,
     window_value,
 )
@@ -31,12 +32,16 @@ __all__ = ["STUDY", "ControlStudy"]
 _STRUCTURES = ("pid", "pid_g", "pid_g_v", "computed_torque")
 
 
-def _ok(c: Mapping[str, Any]) -> bool:
-    return (c.get("whole") or {}).get("verdict") == "ok"
+def _ok(c: StudyCase) -> bool:
+    return c.section("whole").get("verdict") == "ok"
 
 
-def _worst(c: Mapping[str, Any]) -> float:
+def _worst(c: StudyCase) -> float:
     return window_value(c, "whole", "marking_max_um")
+
+
+def _structure(c: StudyCase) -> str:
+    return c.text("settings", "controller.structure")
 
 
 class ControlStudy(ClosedLoopStudy):
@@ -47,7 +52,7 @@ class ControlStudy(ClosedLoopStudy):
     windows = (None, "busiest")
 
     def cases(self, study: StudyConfig) -> dict[str, list[str]]:
-        return {key: [f"controller.structure={setting(case, 'structure')}",
+        return {key: [f"controller.structure={case.structure.name}",
                       f"controller.wn={case.wn}"]
                 for key, case in study.control.cases.items()}
 
@@ -75,8 +80,8 @@ class ControlStudy(ClosedLoopStudy):
         ax.legend(fontsize=7)
         ax.grid(True, axis="y", which="both", alpha=0.3)
 
-        sweep = sorted(((float(c["settings"]["controller.wn"]), c) for c in cases.values()
-                        if c["settings"]["controller.structure"] == "pid_g"),
+        sweep = sorted(((c.setting("controller.wn"), c) for c in cases.values()
+                        if _structure(c) == "pid_g"),
                        key=lambda x: x[0])
         wns = [w for w, _ in sweep]
         ax = axes[1]
@@ -106,7 +111,7 @@ class ControlStudy(ClosedLoopStudy):
             ax.plot(wns, [window_value(c, win, "travel_mean_um") / 1000.0 for _, c in sweep],
                     "^" + ls, color="#e08a1e", label=f"travel mean (mm), {wlabel}")
         for w, c in sweep:
-            verdict = (c.get("whole") or {}).get("verdict", "?")
+            verdict = c.text("whole", "verdict")
             if verdict != "ok":
                 ax.annotate(f"{verdict} ", (w, window_value(c, "whole", "peak_torque_nm")),
                             fontsize=7, color=VERDICT_COLOUR.get(verdict, "k"), ha="right",
@@ -118,23 +123,19 @@ class ControlStudy(ClosedLoopStudy):
         ax.set_title("pid_g: peak torque and travel error")
         ax.legend(fontsize=7)
         ax.grid(True, which="both", alpha=0.3)
-        fig.suptitle(f"Control study{': ' + title if title else ''} (the original's §5.6; MuJoCo, "
-                     "1 kHz loop)")
-        fig.tight_layout()
-        fig.savefig(path, dpi=130)
-        plt.close(fig)
+        finish_figure(fig, path, "Control", title, "the original's §5.6; MuJoCo, 1 kHz loop")
 
-    def summary(self, cases: Cases) -> dict[str, Any]:
+    def summary(self, cases: Cases) -> JsonDict:
         """The best structure at wn 20 and the best pid_g bandwidth (lowest worst marking
         error over the whole drawing among the runs that stayed ok)."""
-        at20 = {k: c for k, c in cases.items() if float(c["settings"]["controller.wn"]) == 20}
-        sweep = {k: c for k, c in cases.items()
-                 if c["settings"]["controller.structure"] == "pid_g" and _ok(c)}
+        at20 = {k: c for k, c in cases.items() if c.setting("controller.wn") == 20}
+        sweep = {k: c for k, c in cases.items() if _structure(c) == "pid_g" and _ok(c)}
+        best_pid_g = min(sweep.values(), key=_worst) if sweep else None
         return {
             "cases": len(cases),
             "best_at_wn20": min(at20, key=lambda k: _worst(at20[k])) if at20 else None,
-            "best_pid_g_wn": float(sweep[min(sweep, key=lambda k: _worst(sweep[k]))]
-                                   ["settings"]["controller.wn"]) if sweep else None,
+            "best_pid_g_wn": best_pid_g.setting("controller.wn") if best_pid_g is not None
+                             else None,
             "not_ok": sorted(k for k, c in cases.items() if not _ok(c)),
         }
 

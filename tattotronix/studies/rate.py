@@ -14,17 +14,23 @@ from __future__ import annotations
 import textwrap
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 from tattotronix.config.schema import Config, StudyConfig
 from tattotronix.control.drawing import ClosedLoop
+from tattotronix.io.jsontypes import JsonDict, JsonValue
 from tattotronix.plotting import pyplot
-from tattotronix.studies.base import VERDICT_COLOUR, Cases, ClosedLoopStudy, int_label
+from tattotronix.studies.base import (
+    VERDICT_COLOUR,
+    Cases,
+    ClosedLoopStudy,
+    finish_figure,
+    int_label,
+)
 
 __all__ = ["STUDY", "RateStudy", "rate_verdict_check"]
 
 
-def rate_verdict_check(loop: ClosedLoop) -> dict[str, Any]:
+def rate_verdict_check(loop: ClosedLoop) -> JsonDict:
     """The run's verdict beside the computed sampled-loop boundary (docs/original.md, "5.4
     Loop facts" and "5.8 The rate study").
 
@@ -58,11 +64,11 @@ class RateStudy(ClosedLoopStudy):
     def plant_dt_s(self, cfg: Config) -> float | None:
         return float(cfg.study.rate_plant_dt_s)
 
-    def window_metrics(self, loop: ClosedLoop) -> dict[str, Any]:
+    def window_metrics(self, loop: ClosedLoop) -> JsonDict:
         return {"boundary": rate_verdict_check(loop)}
 
     def case_metrics(self, cfg: Config, name: str,
-                     windows: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+                     windows: Mapping[str, Mapping[str, JsonValue]]) -> JsonDict:
         # the first window's (the whole drawing)
         return {"verdict_check": next(iter(windows.values()))["boundary"]}
 
@@ -70,26 +76,24 @@ class RateStudy(ClosedLoopStudy):
         """The rate x bandwidth grid coloured by verdict, and each run's wn T against the
         computed boundary."""
         plt = pyplot()
-        rates = sorted({float(c["settings"]["controller.rate_hz"]) for c in cases.values()})
-        wns = sorted({float(c["settings"]["controller.wn"]) for c in cases.values()})
+        rates = sorted({c.setting("controller.rate_hz") for c in cases.values()})
+        wns = sorted({c.setting("controller.wn") for c in cases.values()})
         fig, (ax, bx) = plt.subplots(1, 2, figsize=(14, 5),
                                      gridspec_kw={"width_ratios": [1.1, 1]})
         for c in cases.values():
-            i = rates.index(float(c["settings"]["controller.rate_hz"]))
-            j = wns.index(float(c["settings"]["controller.wn"]))
-            chk = c["verdict_check"]
-            verdict = chk["verdict"]
+            i = rates.index(c.setting("controller.rate_hz"))
+            j = wns.index(c.setting("controller.wn"))
+            verdict = c.text("verdict_check", "verdict")
             ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1,
                                        color=VERDICT_COLOUR.get(verdict, "0.7"), alpha=0.75))
-            w = c.get("whole") or {}
             if verdict == "ok":
-                body = (f"settled {w.get('settled_mean_um', float('nan')):.2f} um\n"
-                        f"worst {w.get('marking_max_um', float('nan')):.1f} um\n"
-                        f"peak {w.get('peak_torque_nm', float('nan')):.3f} N m")
+                body = (f"settled {c.number('whole', 'settled_mean_um'):.2f} um\n"
+                        f"worst {c.number('whole', 'marking_max_um'):.1f} um\n"
+                        f"peak {c.number('whole', 'peak_torque_nm'):.3f} N m")
             else:
-                body = textwrap.fill(str(w.get("reason", "")).split(" (")[0], 30)
-            ax.text(j, i, f"{verdict}  (wn T {chk['wnT']:.2f})\n{body}", ha="center",
-                    va="center", fontsize=7)
+                body = textwrap.fill(c.text("whole", "reason", "").split(" (")[0], 30)
+            ax.text(j, i, f"{verdict}  (wn T {c.number('verdict_check', 'wnT'):.2f})\n{body}",
+                    ha="center", va="center", fontsize=7)
         ax.set_xlim(-0.5, len(wns) - 0.5)
         ax.set_ylim(-0.5, len(rates) - 0.5)
         ax.set_xticks(range(len(wns)), [f"{w:g}" for w in wns])
@@ -99,13 +103,14 @@ class RateStudy(ClosedLoopStudy):
         ax.set_title("whole drawing, plant at 4 kHz")
 
         for c in cases.values():
-            chk = c["verdict_check"]
-            r = float(c["settings"]["controller.rate_hz"])
-            bx.scatter(chk["wnT"], r, s=80, color=VERDICT_COLOUR.get(chk["verdict"], "0.5"),
+            r = c.setting("controller.rate_hz")
+            bx.scatter(c.number("verdict_check", "wnT"), r, s=80,
+                       color=VERDICT_COLOUR.get(c.text("verdict_check", "verdict"), "0.5"),
                        edgecolor="k", zorder=3)
-            bx.plot([chk["boundary_numeric_wnT"]] * 2, [r * 0.85, r * 1.15], color="k", lw=2)
+            bx.plot([c.number("verdict_check", "boundary_numeric_wnT")] * 2,
+                    [r * 0.85, r * 1.15], color="k", lw=2)
         if cases:
-            b = next(iter(cases.values()))["verdict_check"]["boundary_wnT"]
+            b = next(iter(cases.values())).number("verdict_check", "boundary_wnT")
             bx.axvline(b, color="0.3", ls="--", lw=1)
             bx.text(b, rates[0] * 0.72, f" exact hold: 2/(3 lambda_max) = {b:.3f}",
                     fontsize=8)
@@ -119,7 +124,7 @@ class RateStudy(ClosedLoopStudy):
         bx.set_ylim(rates[0] * 0.6, rates[-1] * 1.4) if rates else None
         bx.set_yticks(rates, [f"{r:g}" for r in rates])
         bx.yaxis.set_minor_formatter(NullFormatter())
-        ticks = sorted({round(float(c["verdict_check"]["wnT"]), 2) for c in cases.values()})
+        ticks = sorted({round(c.number("verdict_check", "wnT"), 2) for c in cases.values()})
         bx.set_xticks(ticks, [f"{t:g}" for t in ticks])
         bx.xaxis.set_minor_formatter(NullFormatter())
         bx.set_xlabel("wn T")
@@ -127,14 +132,11 @@ class RateStudy(ClosedLoopStudy):
         bx.set_title("verdict against the computed sampled-loop boundary")
         bx.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
         bx.grid(True, which="both", alpha=0.3)
-        fig.suptitle(f"Rate study{': ' + title if title else ''} (the original's §5.8; pid_g_v)")
-        fig.tight_layout()
-        fig.savefig(path, dpi=130)
-        plt.close(fig)
+        finish_figure(fig, path, "Rate", title, "the original's §5.8; pid_g_v")
 
-    def summary(self, cases: Cases) -> dict[str, Any]:
+    def summary(self, cases: Cases) -> JsonDict:
         """How many verdicts agree with the computed boundary, and how many are ok."""
-        checks = [c["verdict_check"] for c in cases.values()]
+        checks = [c.section("verdict_check") for c in cases.values()]
         return {"cases": len(cases), "agree": sum(bool(k["agrees"]) for k in checks),
                 "ok": sum(k["verdict"] == "ok" for k in checks),
                 "boundary_wnT": checks[0]["boundary_wnT"]}

@@ -6,9 +6,10 @@ Each study is one module holding its :class:`~tattotronix.studies.base.ClosedLoo
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
+from tattotronix.io.jsontypes import JsonDict
 from tattotronix.studies import approach, control, rate, resample
 from tattotronix.studies.base import ClosedLoopStudy
 
@@ -20,7 +21,7 @@ STUDIES: dict[str, ClosedLoopStudy] = {
 
 
 def study_figures(data: Path, name: str, folder: Path,
-                  tmp: Any = None) -> dict[str, Path]:
+                  tmp: Callable[[Path], Path] | None = None) -> dict[str, Path]:
     """Draw every closed-loop study's figure that has cases on ``name``.
 
     Args:
@@ -44,10 +45,10 @@ def study_figures(data: Path, name: str, folder: Path,
     return written
 
 
-def study_summary(data: Path, name: str) -> dict[str, Any]:
+def study_summary(data: Path, name: str) -> JsonDict:
     """What each closed-loop study with cases on ``name`` concludes (study -> its
     :meth:`~tattotronix.studies.base.ClosedLoopStudy.summary`; JSON-ready)."""
-    out: dict[str, Any] = {}
+    out: JsonDict = {}
     for study in STUDIES.values():
         cases = study.load_cases(data, name)
         if cases:

@@ -11,18 +11,19 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.config.schema import Config, StudyConfig
+from tattotronix.io.jsontypes import JsonDict, JsonValue
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.strokes import build_drawing
 from tattotronix.plotting import pyplot
 from tattotronix.studies.base import (
     Cases,
     ClosedLoopStudy,
+    finish_figure,
     log_axes_with_twin,
     sorted_by,
     window_value,
@@ -63,7 +64,7 @@ def chord_error_mm(dense: NDArray[np.float64], step_mm: float) -> float:
     return float(d.max())
 
 
-def _chord_error(cfg: Config, name: str) -> dict[str, Any]:
+def _chord_error(cfg: Config, name: str) -> JsonDict:
     """The resampling's chord error over the drawing's outlines (fill rows are straight)."""
     from tattotronix.pipeline import mask_of
 
@@ -90,7 +91,7 @@ class ResampleStudy(ClosedLoopStudy):
         return f"{float(cfg.toolpath.step_mm)}mm"
 
     def case_metrics(self, cfg: Config, name: str,
-                     windows: Mapping[str, Mapping[str, Any]]) -> dict[str, Any]:
+                     windows: Mapping[str, Mapping[str, JsonValue]]) -> JsonDict:
         return {"chord": _chord_error(cfg, name)}
 
     def figure(self, cases: Cases, path: Path, title: str = "") -> None:
@@ -99,30 +100,26 @@ class ResampleStudy(ClosedLoopStudy):
         rows = sorted_by(cases, "toolpath.step_mm")
         h = [x for x, _ in rows]
         fig, ax = plt.subplots(figsize=(8, 4.8))
-        ax.plot(h, [float(c["chord"]["chord_error_um"]) for _, c in rows], "o-",
+        ax.plot(h, [c.number("chord", "chord_error_um") for _, c in rows], "o-",
                 color="#2a9d55", label="chord error (outlines)")
         ax.plot(h, [window_value(c, "whole", "marking_max_um") for _, c in rows], "s--",
                 color="#c0392b", label="worst marking")
         ax.plot(h, [window_value(c, "whole", "settled_mean_um") for _, c in rows], "^-",
                 color="#3b6fb6", label="settled mean")
         if rows:
-            res_um = float(rows[0][1]["chord"]["mask_res_mm"]) * 1000.0
+            res_um = rows[0][1].number("chord", "mask_res_mm") * 1000.0
             ax.axhline(res_um, color="0.5", lw=0.8, ls=":")
             ax.text(h[0], res_um, f" mask pixel {res_um:g} um", fontsize=7, va="bottom")
         log_axes_with_twin(ax, "point step, mm", "um", h,
-                           [float(c["drawing"]["points"]) for _, c in rows],
+                           [c.number("drawing", "points") for _, c in rows],
                            "trajectory points", "points", "center right")
-        fig.suptitle(f"Resample study{': ' + title if title else ''} (the original's §2.11; whole "
-                     "drawing)")
-        fig.tight_layout()
-        fig.savefig(path, dpi=130)
-        plt.close(fig)
+        finish_figure(fig, path, "Resample", title, "the original's §2.11; whole drawing")
 
-    def summary(self, cases: Cases) -> dict[str, Any]:
+    def summary(self, cases: Cases) -> JsonDict:
         """The chord error, the worst marking and the point count of each step."""
-        return {f"{step:g}mm": {"chord_error_um": float(c["chord"]["chord_error_um"]),
+        return {f"{step:g}mm": {"chord_error_um": c.number("chord", "chord_error_um"),
                                 "marking_max_um": window_value(c, "whole", "marking_max_um"),
-                                "points": int(c["drawing"]["points"])}
+                                "points": int(c.number("drawing", "points"))}
                 for step, c in sorted_by(cases, "toolpath.step_mm")}
 
 
