@@ -62,8 +62,8 @@ def started(bus: RecordingBus | None = None) -> tuple[PCA9685, RecordingBus]:
 
 @pytest.fixture
 def restore_signals() -> Iterator[None]:
-    """Put SIGINT/SIGTERM handlers back whatever a test did."""
-    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    """Put SIGINT/SIGTERM/SIGHUP handlers back whatever a test did."""
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
     yield
     for s, h in saved.items():
         signal.signal(s, h)
@@ -336,6 +336,7 @@ def test_context_restores_handlers(restore_signals: None) -> None:
     with pwm:
         assert signal.getsignal(signal.SIGINT) == pwm._on_signal
         assert signal.getsignal(signal.SIGTERM) == pwm._on_signal
+        assert signal.getsignal(signal.SIGHUP) == pwm._on_signal
     assert signal.getsignal(signal.SIGINT) is before_int
     assert signal.getsignal(signal.SIGTERM) is mine
 
@@ -369,19 +370,22 @@ def test_sigint_chains_to_the_previous_python_handler(restore_signals: None) -> 
     assert bus.pairs()[-1] == ALL_OFF
 
 
-def test_sigterm_switches_off_and_exits_143(restore_signals: None) -> None:
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+def test_sigterm_and_sighup_switch_off_and_exit_128_plus(restore_signals: None,
+                                                         sig: signal.Signals) -> None:
+    """SIGTERM (143) and a hang-up (129: the terminal closed) stop alike."""
+    signal.signal(sig, signal.SIG_DFL)
     bus = RecordingBus()
     pwm = PCA9685(bus, sleep=no_sleep)
     with pytest.raises(SystemExit) as info, pwm:
         pwm.start(50.0)
         pwm.set_counts(1, 320)
         n = len(bus.writes)
-        signal.raise_signal(signal.SIGTERM)
+        signal.raise_signal(sig)
         pytest.fail("SystemExit did not propagate")  # pragma: no cover
-    assert info.value.code == 128 + signal.SIGTERM
+    assert info.value.code == 128 + sig
     assert bus.pairs()[n] == ALL_OFF
-    assert signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
+    assert signal.getsignal(sig) == signal.SIG_DFL
 
 
 def test_ignored_signal_stays_ignored(restore_signals: None) -> None:
@@ -437,7 +441,7 @@ def test_i2c_error_half_way_names_the_board_and_still_switches_off() -> None:
     assert "0x40" in msg
     assert "0x12" in msg and "LED3_ON_L" in msg
     assert "Remote I/O error" in msg
-    assert "i2cdetect -y 1" in msg and "wiring" in msg
+    assert "that `i2cdetect -y 1` lists the board at 0x40" in msg and "wiring" in msg
     assert isinstance(info.value, TattotronixError)
     assert isinstance(info.value.__cause__, OSError)
     assert bus.attempts == 8  # the failed write, then the exit's all-off

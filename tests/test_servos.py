@@ -196,6 +196,8 @@ def test_tool_channel_clash() -> None:
         ("joint_1", "channel", "zero", "joint_1.channel: 'zero' is not an integer"),
         ("joint_1", "channel", 1.5, "joint_1.channel: 1.5 is not a whole number"),
         ("joint_1", "zero_us", [1500], "joint_1.zero_us: [1500] is not a number"),
+        ("joint_1", "max_us", 9000, "joint_1.max_us: 9000 us is above 2600 us, the widest"),
+        ("joint_4", "min_us", 100, "joint_4.min_us: 100 us is below 400 us, the narrowest"),
     ],
 )
 def test_each_problem_names_joint_and_key(joint: str, key: str, value: Any,
@@ -204,6 +206,21 @@ def test_each_problem_names_joint_and_key(joint: str, key: str, value: Any,
     data["joints"][joint][key] = value
     found = problems_of(data)
     assert any(expected in p for p in found), found
+
+
+def test_limits_stay_within_what_a_hobby_servo_accepts() -> None:
+    """400...2600 us, the widths stages/servo_pulse.py holds: the calibration's limits may
+    reach them but not go past, and each one beyond is named with its joint and key."""
+    from tattotronix.hardware.pulse import MAX_US, MIN_US
+
+    data = mapping()
+    data["joints"]["joint_3"].update(min_us=MIN_US, max_us=MAX_US)
+    Calibration.from_mapping(data)
+    data["joints"]["joint_3"].update(min_us=MIN_US - 1, max_us=MAX_US + 1)
+    found = problems_of(data)
+    assert [p.split(":")[0] for p in found] == ["joint_3.min_us", "joint_3.max_us"]
+    with pytest.raises(CalibrationError, match="max_us: 2700 us is above 2600"):
+        ServoChannel(0, 1500.0, 636.62, 500.0, 2700.0)
 
 
 def test_min_us_must_be_positive() -> None:

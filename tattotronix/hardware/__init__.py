@@ -1,8 +1,11 @@
 """Servo hardware: the PCA9685 PWM board on I2C and the servo calibration.
 
 * :mod:`~tattotronix.hardware.pca9685`: the board driver (prescaler, atomic 4-byte channel
-  writes, all outputs off on exit, exception and SIGINT/SIGTERM), the :class:`RecordingBus`
-  fake for dry runs and tests, and :func:`open_bus` for the Linux I2C device.
+  writes, all outputs off on exit, exception and SIGINT/SIGTERM/SIGHUP), the
+  :class:`RecordingBus` fake for dry runs and tests, and :func:`open_bus` for the Linux
+  I2C device.
+* :mod:`~tattotronix.hardware.arm`: ``draw.py backend=arm``, a drawing streamed to the
+  board with safe stops and resume (after a crash too).
 * :mod:`~tattotronix.hardware.servos`: joint angle (rad) to pulse width (us) to count, per
   servo (the mirrored second shoulder servo included), and the validated calibration file.
 """

@@ -2,28 +2,56 @@
 
 * Nothing reaches the bus before the drawing is proven clear of collisions with the
   margin (:func:`check_drawing_clear`, the collision stage's check).
-* The last commanded pose lives in a state file (the servos report nothing). A session
-  first ramps slowly (``hardware.ramp_rad_s``) from that pose to the start pose.
+* Nothing is written before the bus is known to work: the board must answer (or the
+  recording bus stand in) before a log, the state file or the session lock is touched,
+  so a missing device leaves the last run's files as they were. One session at a time:
+  a lock beside the state file (``state.json.lock``) refuses a second one.
+* The last commanded pose lives in the state file (the servos report nothing). A session
+  first lifts the needle straight up if that pose has it below the clearance height,
+  then ramps slowly (``hardware.ramp_rad_s``) to the start pose.
 * Frames are sent at the frame rate; only the channels whose count changed are written
   (every channel on the first frame of a session). No count leaves the calibration.
-* **Pause**: Ctrl-C (or SIGTERM) lifts the needle straight up to the clearance height,
-  saves the frame index and switches every output off. A bus error saves the frame index
-  of the last frame fully sent and tries all-off. Either way ``resume=true`` continues:
-  it ramps to the point above the stopped frame, comes down along the needle at the
-  marking feed (a fresh approach) and streams on from there.
-* ``dry_run=true`` runs all of it against a recording bus, appending the I2C transcript
-  (``i2c.jsonl``: one ``{"addr", "reg", "data"}`` per write) and the commanded poses
-  (``poses.jsonl``) under ``data/runs/<name>-arm/``; ``realtime=false`` skips the waits.
+* The logs are append-only, one line per frame, numbered by ``session``: ``poses.jsonl``
+  (the commanded poses) and on a dry run ``i2c.jsonl`` (the I2C writes). Each frame's
+  lines are flushed as it is sent, and both logs are forced to disk before every refresh
+  of the state file (every ``hardware.save_every_s``), so they are never behind it.
+* **Stop**: SIGINT (Ctrl-C), SIGTERM and SIGHUP (a closed terminal, a dropped SSH) only
+  note the request; the frame being sent completes, the needle is lifted straight up to
+  the clearance height (a further signal does not cut the lift short), the frame index is
+  saved and every output is switched off. The message says where the last pose sent left
+  the needle tip. A bus error saves the frame it failed on and tries all-off (no lift:
+  the bus is gone). Either way ``resume=true`` continues: it lifts first if needed, ramps
+  to the point above the stopped frame, comes down along the needle at the marking feed
+  (a fresh approach) and streams on from there.
+* **Crash**: a process that dies (SIGKILL, a power cut, out of memory) leaves the state
+  ``drawing``. ``resume=true`` treats its frame as uncertain: it takes the last pose in
+  ``poses.jsonl`` as the last one commanded, lifts the needle from there first, and
+  restarts :data:`RESUME_MARGIN_S` of drawing before the last frame known to be sent.
+* ``dry_run=true`` runs all of it against a recording bus, under
+  ``data/runs/<name>-arm/``; ``realtime=false`` skips the waits.
+* Tests time their stops with the environment variable :data:`TEST_HOOK_ENV`:
+  ``phase:n:action[;...]`` acts after the ``n``-th frame of ``phase`` (``lift``,
+  ``ramp``, ``approach``, ``draw``) sent in the session; the action is a signal the
+  process sends itself (``INT``, ``TERM``, ``HUP``, ``KILL``) or ``wait`` (say so on
+  stderr, then hold until a stop is asked, at most a minute).
 """
 
 from __future__ import annotations
 
+import fcntl
 import json
 import logging
+import math
+import os
+import signal
+import sys
+import threading
 import time
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from types import FrameType
+from typing import IO
 
 import numpy as np
 from numpy.typing import NDArray
@@ -39,36 +67,23 @@ from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain, IkOptions, solve_path
 from tattotronix.robot.description import RobotDescription, build_description
 
-__all__ = ["ArmSession", "ArmState", "Paused", "calibration_from_config", "check_drawing_clear",
-           "ramp"]
+__all__ = ["RESUME_MARGIN_S", "TEST_HOOK_ENV", "ArmSession", "ArmState", "Paused",
+           "calibration_from_config", "check_drawing_clear", "ramp"]
 
 log = logging.getLogger("tattotronix.arm")
 Array = NDArray[np.float64]
 
-
-def _sigterm_as_interrupt() -> Any:
-    """Make SIGTERM stop the drawing like Ctrl-C (main thread only); returns the old one."""
-    import signal
-    import threading
-
-    if threading.current_thread() is not threading.main_thread():
-        return None
-
-    def handler(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt(f"signal {signum}")
-
-    return signal.signal(signal.SIGTERM, handler)
-
-
-def _restore_sigterm(previous: Any) -> None:
-    import signal
-
-    if previous is not None:
-        signal.signal(signal.SIGTERM, previous)
+#: how much drawing a resume after a crash goes back before the last frame known sent, s
+RESUME_MARGIN_S = 0.5
+#: the test hook (module docstring); unset in normal use
+TEST_HOOK_ENV = "TATTOTRONIX_ARM_TEST_HOOK"
+_STOP_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
+_HOOK_WAIT_S = 60.0
+_Handler = Callable[[int, FrameType | None], object] | int | signal.Handlers | None
 
 
 class Paused(TattotronixError):
-    """The drawing stopped on request (Ctrl-C / SIGTERM); the message says how to resume."""
+    """The drawing stopped on request (a stop signal); the message says how to resume."""
 
 
 def calibration_from_config(hw: HardwareConfig, joint_names: tuple[str, ...]) -> Calibration:
@@ -88,8 +103,11 @@ class ArmState:
         program: its program digest.
         frame: the next frame to send.
         frames: the program's length.
-        status: ``idle``, ``drawing``, ``paused``, ``failed`` or ``done``.
+        status: ``idle``, ``drawing`` (also what a session that died leaves), ``paused``,
+            ``failed`` or ``done``.
         reason: why it stopped.
+        drawn: the frames known sent so far (one past the highest), over all sessions.
+        session: the session that last wrote the state (``session`` in the logs).
     """
 
     q: list[float]
@@ -100,6 +118,8 @@ class ArmState:
     status: str = "idle"
     reason: str = ""
     saved_at: float = field(default_factory=time.time)
+    drawn: int = 0
+    session: int = 0
 
     @classmethod
     def load(cls, path: Path, n: int) -> ArmState | None:
@@ -122,12 +142,31 @@ class ArmState:
         return state
 
     def save(self, path: Path) -> None:
-        """Write atomically (a crash never leaves half a file)."""
+        """Write atomically and durably: a crash or a power cut leaves the old file or the
+        new one, never half a file."""
         path.parent.mkdir(parents=True, exist_ok=True)
         self.saved_at = time.time()
         tmp = path.with_name(path.name + ".tmp")
-        tmp.write_text(json.dumps(asdict(self), indent=1) + "\n")
+        with open(tmp, "w", encoding="utf-8") as fh:
+            fh.write(json.dumps(asdict(self), indent=1) + "\n")
+            fh.flush()
+            os.fsync(fh.fileno())
         tmp.replace(path)
+        _fsync_dir(path.parent)
+
+
+def _fsync_dir(folder: Path) -> None:
+    """Make a rename in ``folder`` durable (POSIX; a no-op where directories can't sync)."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 def ramp(q0: Array, q1: Array, speed_rad_s: float, frame_hz: float) -> Array:
@@ -142,22 +181,241 @@ def ramp(q0: Array, q1: Array, speed_rad_s: float, frame_hz: float) -> Array:
     return q0 + s[:, None] * (q1 - q0)
 
 
+# ----------------------------------------------------------------------------- stops
+
+
+class _StopRequests:
+    """The stop signals received during a session: the handlers only note them, so that
+    nothing (a second Ctrl-C included) can cut a frame or a lift short."""
+
+    def __init__(self) -> None:
+        self.signals: list[int] = []
+        self._previous: dict[int, _Handler] = {}
+
+    def install(self) -> None:
+        """Handle SIGINT, SIGTERM and SIGHUP (main thread only; an ignored one stays
+        ignored, as under ``nohup``)."""
+        if threading.current_thread() is not threading.main_thread():
+            return
+        for name in _STOP_SIGNALS:
+            sig = getattr(signal, name, None)
+            if sig is None:  # no SIGHUP off POSIX
+                continue
+            previous = signal.getsignal(sig)
+            if previous == signal.SIG_IGN:
+                continue
+            signal.signal(sig, self._note)
+            self._previous[sig] = previous
+
+    def restore(self) -> None:
+        """Put the previous handlers back."""
+        for sig, previous in self._previous.items():
+            signal.signal(sig, signal.SIG_DFL if previous is None else previous)
+        self._previous = {}
+
+    def _note(self, signum: int, frame: FrameType | None) -> None:
+        self.signals.append(signum)
+
+    @property
+    def asked(self) -> bool:
+        """Whether a stop was asked."""
+        return bool(self.signals)
+
+    def names(self) -> list[str]:
+        """The signals received, in order (``SIGINT``, ...)."""
+        return [signal.Signals(s).name for s in self.signals]
+
+
+@dataclass(frozen=True)
+class _HookStep:
+    phase: str
+    count: int
+    action: str
+
+
+def _hook_steps(text: str) -> list[_HookStep]:
+    """Parse :data:`TEST_HOOK_ENV` (``phase:n:action[;...]``)."""
+    steps = []
+    for part in filter(None, (p.strip() for p in text.split(";"))):
+        bits = part.split(":")
+        ok = len(bits) == 3 and bits[0] in ("lift", "ramp", "approach", "draw") and (
+            bits[1].isdigit() and (bits[2] == "wait" or bits[2] in ("INT", "TERM", "HUP",
+                                                                   "KILL")))
+        if not ok:
+            raise TattotronixError(
+                f"{TEST_HOOK_ENV}={text!r}: each step is phase:n:action with phase lift, "
+                "ramp, approach or draw, n a frame count, action INT, TERM, HUP, KILL or "
+                "wait")
+        steps.append(_HookStep(bits[0], int(bits[1]), bits[2]))
+    return steps
+
+
+class _SessionLock:
+    """An exclusive lock beside the state file, held for a session (the kernel drops it
+    when the process dies, however it dies)."""
+
+    def __init__(self, state_file: Path):
+        self.path = state_file.with_name(state_file.name + ".lock")
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            holder = os.read(fd, 32).decode(errors="replace").strip() or "?"
+            os.close(fd)
+            raise TattotronixError(
+                f"another arm session is running (process {holder} holds {self.path}): "
+                "stop it first (Ctrl-C); two sessions must never drive the servos") from None
+        os.ftruncate(fd, 0)
+        os.write(fd, f"{os.getpid()}\n".encode())
+        self.fd = fd
+
+    def release(self) -> None:
+        """Let the next session in."""
+        fcntl.flock(self.fd, fcntl.LOCK_UN)
+        os.close(self.fd)
+
+
+# ----------------------------------------------------------------------------- logs
+
+
+@dataclass(frozen=True)
+class _LogTail:
+    """The end of a ``poses.jsonl``: its last session, that session's last pose and one
+    past its last drawn frame (0 when it drew none)."""
+
+    session: int = 0
+    q: tuple[float, ...] | None = None
+    drawn: int = 0
+
+
+def _pose_record(raw: bytes, n: int) -> tuple[int, str, int | None, tuple[float, ...]] | None:
+    """A ``poses.jsonl`` line as (session, phase, frame, q); None for a torn or garbled
+    one (a power cut can leave one at the end)."""
+    try:
+        rec = json.loads(raw)
+        session, phase, frame = rec["session"], rec["phase"], rec["frame"]
+        q = tuple(float(v) for v in rec["q"])
+    except (ValueError, KeyError, TypeError):
+        return None
+    if not (isinstance(session, int) and isinstance(phase, str)
+            and (frame is None or isinstance(frame, int))
+            and len(q) == n and all(math.isfinite(v) for v in q)):
+        return None
+    return session, phase, frame, q
+
+
+def _read_tail(path: Path, n: int, block: int = 1 << 16) -> _LogTail:
+    """The :class:`_LogTail` of ``path``, read backwards from its end (only as far as the
+    last session's last drawn frame)."""
+    if not path.exists():
+        return _LogTail()
+    session, q = 0, None
+    with open(path, "rb") as fh:
+        pos = fh.seek(0, os.SEEK_END)
+        rest = b""
+        while pos > 0:
+            step = min(block, pos)
+            pos -= step
+            fh.seek(pos)
+            lines = (fh.read(step) + rest).split(b"\n")
+            rest = lines.pop(0) if pos > 0 else b""  # may be a line cut by the block
+            for raw in reversed(lines):
+                rec = _pose_record(raw, n)
+                if rec is None:
+                    continue
+                s, phase, frame, pose = rec
+                if q is None:
+                    session, q = s, pose
+                elif s != session:
+                    return _LogTail(session, q, 0)
+                if phase == "draw" and frame is not None:
+                    return _LogTail(session, q, frame + 1)
+    return _LogTail(session, q, 0)
+
+
+class _Logs:
+    """The session's append-only logs: every frame's lines are flushed as it is sent;
+    :meth:`sync` forces them to disk."""
+
+    def __init__(self, folder: Path, session: int, recorder: RecordingBus | None):
+        folder.mkdir(parents=True, exist_ok=True)
+        self.session = session
+        self.recorder = recorder
+        self.poses = self._append(folder / "poses.jsonl")
+        self.i2c = self._append(folder / "i2c.jsonl") if recorder is not None else None
+        self._drained = 0
+
+    @staticmethod
+    def _append(path: Path) -> IO[str]:
+        """Open for appending, after ending a line a crash may have left torn."""
+        torn = False
+        if path.exists() and path.stat().st_size > 0:
+            with open(path, "rb") as fh:
+                fh.seek(-1, os.SEEK_END)
+                torn = fh.read(1) != b"\n"
+        out = open(path, "a", encoding="utf-8")  # noqa: SIM115
+        if torn:
+            out.write("\n")
+        return out
+
+    def _drain(self) -> None:
+        if self.recorder is None or self.i2c is None:
+            return
+        for w in self.recorder.writes[self._drained:]:
+            self.i2c.write(json.dumps({"session": self.session, **w}) + "\n")
+        self._drained = len(self.recorder.writes)
+
+    def pose(self, phase: str, frame: int | None, q: Array, counts: dict[int, int]) -> None:
+        """Log a frame just sent (its I2C writes first), and flush."""
+        self._drain()
+        self.poses.write(json.dumps({"session": self.session, "phase": phase, "frame": frame,
+                                     "q": [round(float(v), 9) for v in q],
+                                     "counts": {str(k): v for k, v in counts.items()}}) + "\n")
+        self.flush()
+
+    def flush(self) -> None:
+        """Hand every line to the operating system (survives the process, not a power cut)."""
+        self._drain()
+        for fh in (self.poses, self.i2c):
+            if fh is not None:
+                fh.flush()
+
+    def sync(self) -> None:
+        """Flush and force to disk (survives a power cut)."""
+        self.flush()
+        for fh in (self.poses, self.i2c):
+            if fh is not None:
+                os.fsync(fh.fileno())
+
+    def close(self) -> None:
+        """Sync and close."""
+        try:
+            self.sync()
+        finally:
+            self.poses.close()
+            if self.i2c is not None:
+                self.i2c.close()
+
+
 class _Stream:
     """Sends frames to the board: changed channels only, paced, logged."""
 
     def __init__(self, board: PCA9685, calib: Calibration, count_us: float, frame_hz: float,
-                 realtime: bool, poses: Any, session: int):
+                 realtime: bool, logs: _Logs, stop: _StopRequests, hook: list[_HookStep]):
         self.board = board
         self.calib = calib
         self.count_us = count_us
         self.period = 1.0 / frame_hz
         self.realtime = realtime
-        self.poses = poses
-        self.session = session
+        self.logs = logs
+        self.stop = stop
+        self.hook = hook
         self.last: dict[int, int] = {}
         self.q = np.zeros(len(calib.joints))
         self.sent = 0
         self.writes = 0
+        self.by_phase: dict[str, int] = {}
         self._next = time.perf_counter()
 
     def send(self, q: Array, phase: str, frame: int | None = None,
@@ -175,9 +433,39 @@ class _Stream:
                 self.writes += 1
         self.q = np.asarray(q, dtype=np.float64).copy()
         self.sent += 1
-        self.poses.write(json.dumps({"session": self.session, "phase": phase, "frame": frame,
-                                     "q": [round(float(v), 9) for v in self.q],
-                                     "counts": {str(k): v for k, v in counts.items()}}) + "\n")
+        self.logs.pose(phase, frame, self.q, counts)
+        k = self.by_phase[phase] = self.by_phase.get(phase, 0) + 1
+        for step in self.hook:
+            if step.phase == phase and step.count == k:
+                self._act(step)
+
+    def _act(self, step: _HookStep) -> None:
+        if step.action != "wait":
+            noted = len(self.stop.signals)
+            os.kill(os.getpid(), getattr(signal, f"SIG{step.action}"))
+            deadline = time.monotonic() + 1.0  # let the handler note it before going on
+            while len(self.stop.signals) == noted and time.monotonic() < deadline:
+                time.sleep(0.001)
+            return
+        print(f"arm test hook: waiting at {step.phase} {step.count} (pid {os.getpid()})",
+              file=sys.stderr, flush=True)
+        deadline = time.monotonic() + _HOOK_WAIT_S
+        while not self.stop.asked and time.monotonic() < deadline:
+            time.sleep(0.01)
+
+
+# ----------------------------------------------------------------------------- session
+
+
+@dataclass(frozen=True)
+class _Start:
+    """Where a session starts: the first frame to send, the pose the arm was last sent,
+    the frames known drawn, and whether the last session died without stopping."""
+
+    frame: int
+    q: Array
+    drawn: int
+    crashed: bool
 
 
 @dataclass
@@ -192,6 +480,7 @@ class ArmSession:
         run_dir: ``data/runs/<name>-arm``.
         state_file: the arm state file.
         clearance_z_m: the needle's clearance height (arm frame), m.
+        surface_z_m: the panel surface's height (arm frame), m.
         feed_m_s: the approach feed (the marking feed), m/s.
         ramp_rad_s: the fastest joint speed of ramps, rad/s.
         ik: IK keyword arguments for lifts and approaches (``pipeline.ik_settings``).
@@ -207,6 +496,7 @@ class ArmSession:
     run_dir: Path
     state_file: Path
     clearance_z_m: float
+    surface_z_m: float
     feed_m_s: float
     ramp_rad_s: float
     ik: IkOptions
@@ -250,127 +540,243 @@ class ArmSession:
         return np.concatenate([ramp(q_here, down[0], self.ramp_rad_s, self.program.frame_hz),
                                down[1:]])
 
+    def _needle(self, q: Array) -> str:
+        """Where ``q`` puts the needle tip, for a message."""
+        z = float(self.chain.fk(q)[0][0, 2])
+        c, s = self.clearance_z_m * 1e3, self.surface_z_m * 1e3
+        if z >= self.clearance_z_m - 1e-5:
+            return (f"{z * 1e3:.2f} mm, {z * 1e3 - s:.2f} mm above the surface ({s:.2f} mm): "
+                    f"at or above the clearance height {c:.2f} mm")
+        if z > self.surface_z_m:
+            return (f"{z * 1e3:.2f} mm, {z * 1e3 - s:.2f} mm above the surface ({s:.2f} mm) "
+                    f"but below the clearance height {c:.2f} mm")
+        return (f"{z * 1e3:.2f} mm, {s - z * 1e3:.2f} mm INTO the work (the surface is at "
+                f"{s:.2f} mm): the needle may be in it")
+
+    def _poses_of(self, drawing: str) -> Path:
+        return self.run_dir.parent / run_label(drawing, "arm") / "poses.jsonl"
+
     # -------------------------------------------------------------- the run
 
-    def run(self) -> JsonDict:
-        """Ramp, stream, and stop safely (see the module docstring).
+    def _begin(self, state: ArmState | None, digest: str) -> _Start:
+        """Where this session starts, from the state (and after a crash, the pose log).
 
         Raises:
-            Paused: Ctrl-C / SIGTERM (after the lift and all-off; state saved).
-            TattotronixError: a bus error (state saved), a refused resume, a missing device.
+            TattotronixError: a resume with nothing to resume, or of a changed program.
         """
+        n = len(self.calib.joints)
+        if state is None:
+            if self.resume:
+                raise TattotronixError(f"nothing to resume for '{self.name}': no state file;"
+                                       " run without resume=true to start from the beginning")
+            return _Start(0, np.zeros(n), 0, crashed=False)
+        q = np.asarray(state.q, dtype=np.float64)
+        crashed = state.status == "drawing"
+        tail = _LogTail()
+        if crashed and state.drawing:
+            tail = _read_tail(self._poses_of(state.drawing), n)
+            if tail.session != state.session or tail.q is None:
+                tail = _LogTail()  # not the log of that session: the state is all we know
+            else:
+                q = np.asarray(tail.q, dtype=np.float64)  # the last pose it sent
+        if not self.resume:
+            return _Start(0, q, 0, crashed)
+        if state.drawing != self.name or state.status not in ("paused", "failed", "drawing"):
+            raise TattotronixError(
+                f"nothing to resume for '{self.name}': the last drawing was "
+                f"'{state.drawing}' ({state.status}); run without resume=true to start from "
+                "the beginning")
+        if state.program != digest:
+            raise TattotronixError(
+                f"the program of '{self.name}' changed since it stopped at frame "
+                f"{state.frame} (trajectory, calibration or settings): resuming would "
+                "draw a different picture; start again without resume=true")
+        if not crashed:
+            return _Start(state.frame, q, max(state.drawn, state.frame), crashed=False)
+        known = max(state.drawn, state.frame, tail.drawn)
+        margin = int(round(RESUME_MARGIN_S * self.program.frame_hz))
+        return _Start(max(0, known - margin), q, known, crashed=True)
+
+    def run(self) -> JsonDict:
+        """Lift if needed, ramp or approach, stream, and stop safely (module docstring).
+
+        Raises:
+            Paused: a stop signal (after the lift and all-off; state saved).
+            TattotronixError: a bus error (state saved), a refused resume, a missing
+                device, another session running.
+        """
+        hook = _hook_steps(os.environ.get(TEST_HOOK_ENV, ""))
+        # refuse early, and touch nothing before the bus answers
+        self._begin(ArmState.load(self.state_file, len(self.calib.joints)),
+                    self.program.digest())
+        bus: SMBusLike = RecordingBus(fail_after=self.fail_after_writes) if self.dry_run else \
+            open_bus(self.calib.device, self.calib.address)
+        try:
+            lock = _SessionLock(self.state_file)
+            try:
+                return self._session(bus, hook)
+            finally:
+                lock.release()
+        finally:
+            bus.close()
+
+    def _save(self, state: ArmState, stream: _Stream, logs: _Logs) -> None:
+        """The logs to disk first, then the state: the logs are never behind it."""
+        state.q = stream.q.tolist()
+        logs.sync()
+        state.save(self.state_file)
+
+    def _session(self, bus: SMBusLike, hook: list[_HookStep]) -> JsonDict:
         prog = self.program
         n = len(self.calib.joints)
-        state = ArmState.load(self.state_file, n)
         digest = prog.digest()
-        start = 0
-        if self.resume:
-            if state is None or state.drawing != self.name or state.status not in (
-                    "paused", "failed"):
-                what = "no state file" if state is None else (
-                    f"the last drawing was '{state.drawing}' ({state.status})")
-                raise TattotronixError(f"nothing to resume for '{self.name}': {what}; run "
-                                       "without resume=true to start from the beginning")
-            if state.program != digest:
-                raise TattotronixError(
-                    f"the program of '{self.name}' changed since it stopped at frame "
-                    f"{state.frame} (trajectory, calibration or settings): resuming would "
-                    "draw a different picture; start again without resume=true")
-            start = state.frame
-        if state is None:
+        loaded = ArmState.load(self.state_file, n)  # again, now that the lock is ours
+        begin = self._begin(loaded, digest)
+        margin = int(round(RESUME_MARGIN_S * prog.frame_hz))
+        if loaded is None:
             log.warning("no arm state file (%s): assuming the arm rests at the zero pose; "
                         "the first move goes from there", self.state_file)
             state = ArmState(q=[0.0] * n)
-        q_last = np.asarray(state.q, dtype=np.float64)
-        session_no = self._next_session(fresh=not self.resume)
-        self.run_dir.mkdir(parents=True, exist_ok=True)
-        mode = "a" if self.resume else "w"  # a resume appends to the drawing's logs
-        poses_fh = open(self.run_dir / "poses.jsonl", mode, encoding="utf-8")  # noqa: SIM115
-        i2c_path = self.run_dir / "i2c.jsonl"
-        bus: SMBusLike = RecordingBus(fail_after=self.fail_after_writes) if self.dry_run else \
-            open_bus(self.calib.device, self.calib.address)
-        frame = start
-        status, reason = "drawing", ""
+        else:
+            state = loaded
+            if begin.crashed:
+                log.warning(
+                    "the last session (of '%s') died without stopping: taking the last pose "
+                    "it sent as the arm's and lifting the needle from there first%s",
+                    state.drawing, f"; {begin.drawn} frames known sent, going back "
+                    f"{begin.drawn - begin.frame} (at most {margin}) to frame {begin.frame}"
+                    if self.resume else "")
+        session_no = max(_read_tail(self.run_dir / "poses.jsonl", n).session,
+                         state.session if state.drawing == self.name else 0) + 1
+        logs = _Logs(self.run_dir, session_no, bus if isinstance(bus, RecordingBus) else None)
+        start = begin.frame
+        state.drawing, state.program, state.frames = self.name, digest, prog.frames
+        state.session, state.frame, state.drawn = session_no, start, begin.drawn
+        state.status, state.reason, state.q = "drawing", "", begin.q.tolist()
         stream: _Stream | None = None
+        stage = "start"  # then lift (the first one), ramp / approach, draw, stop (its lift)
+        stopped_in = ""
+        lifted = 0  # frames of the last lift (the first one, or the one after a stop)
+        status, error = "drawing", None
+        outputs_off = False
+        save_every = max(1, int(round(self.save_every_s * prog.frame_hz)))
         t0 = time.perf_counter()
-        previous_term = _sigterm_as_interrupt()
+        board = PCA9685(bus, self.calib.address, self.calib.oscillator_hz,
+                        handle_signals=False)
+        stop = _StopRequests()
+        stop.install()
         try:
-            # Signals are ours, not the driver's: a stop first lifts the needle, then the
-            # context switches every output off (also on any exception).
-            with PCA9685(bus, self.calib.address, self.calib.oscillator_hz,
-                         handle_signals=False) as board:
+            try:
                 board.start(self.calib.frame_hz)
-                stream = _Stream(board, self.calib, prog.count_us, prog.frame_hz,
-                                 self.realtime, poses_fh, session_no)
-                stream.q = q_last
-                state.drawing, state.program, state.frames = self.name, digest, prog.frames
-                state.frame, state.status = frame, "drawing"
-                # a needle left in the panel (a bus failure stops without lifting) comes
-                # straight up first; then the ramp, or on resume a fresh approach
-                lift = self._lift(q_last)
-                for q in lift:
-                    stream.send(q, "lift")
-                q_up = lift[-1] if len(lift) else q_last
-                lead = (self._approach(q_up, prog.q[start]) if self.resume else
-                        ramp(q_up, prog.q[start], self.ramp_rad_s, prog.frame_hz))
-                for q in lead:
-                    stream.send(q, "approach" if self.resume else "ramp")
-                save_every = max(1, int(round(self.save_every_s * prog.frame_hz)))
-                try:
+                stage = "lift"
+                st = stream = _Stream(board, self.calib, prog.count_us, prog.frame_hz,
+                                      self.realtime, logs, stop, hook)
+                st.q = begin.q.copy()
+                self._save(state, st, logs)
+
+                def play(frames: Array, phase: str, interruptible: bool) -> bool:
+                    for q in frames:
+                        if interruptible and stop.asked:
+                            return False
+                        st.send(q, phase)
+                        if st.sent % save_every == 0:
+                            self._save(state, st, logs)
+                    return True
+
+                # a needle left in the work (a bus failure or a crash stops without a lift)
+                # comes straight up first; a stop signal waits for that lift
+                lift = self._lift(begin.q)
+                play(lift, "lift", interruptible=False)
+                lifted = len(lift)
+                stage = "approach" if self.resume else "ramp"
+                lead = (self._approach(st.q, prog.q[start]) if self.resume else
+                        ramp(st.q, prog.q[start], self.ramp_rad_s, prog.frame_hz))
+                if stop.asked:
+                    stopped_in = "lift"
+                elif not play(lead, stage, interruptible=True):
+                    stopped_in = stage
+                else:
+                    stage = "draw"
                     for frame in range(start, prog.frames):
-                        stream.send(prog.q[frame], "draw", frame, prog.row(frame))
-                        if (frame - start) % save_every == 0:
-                            state.q, state.frame = stream.q.tolist(), frame + 1
-                            state.save(self.state_file)
-                    frame = prog.frames
-                    status = "done"
-                except KeyboardInterrupt:
-                    reason = f"paused at frame {frame} of {prog.frames}"
-                    for q in self._lift(stream.q):
-                        stream.send(q, "lift")
+                        if stop.asked:
+                            stopped_in = "draw"
+                            break
+                        st.send(prog.q[frame], "draw", frame, prog.row(frame))
+                        state.frame, state.drawn = frame + 1, max(state.drawn, frame + 1)
+                        if st.sent % save_every == 0:
+                            self._save(state, st, logs)
+                    else:
+                        status = "done"
+                if stopped_in and stopped_in != "lift":
+                    stage = "stop"
+                    lift = self._lift(st.q)
+                    play(lift, "lift", interruptible=False)
+                    lifted = len(lift)
+                if stopped_in:
                     status = "paused"
-        except KeyboardInterrupt:  # a second Ctrl-C during the lift: outputs are off
-            status, reason = "paused", f"stopped during the lift at frame {frame}"
-        except BusError as exc:
-            status, reason = "failed", str(exc)
+            except TattotronixError as exc:  # a bus error; an unreachable lift
+                status, error = "failed", exc
+            finally:
+                try:
+                    board.all_off()
+                    outputs_off = True
+                except BusError as exc:
+                    log.error("switching the PCA9685 outputs off failed: %s", exc)
+                    if error is None:
+                        status, error = "failed", exc
         finally:
-            _restore_sigterm(previous_term)
-            poses_fh.close()
-            if isinstance(bus, RecordingBus):
-                with open(i2c_path, mode, encoding="utf-8") as fh:
-                    fh.write(bus.transcript())
             if stream is not None:
                 state.q = stream.q.tolist()
-            state.frame = frame if status != "done" else prog.frames
             state.status = status if status != "drawing" else "failed"
-            state.reason = reason
-            state.save(self.state_file)
+            where = {"start": "while starting the board, before any frame was sent",
+                     "lift": f"during the first lift, before frame {start}",
+                     "ramp": f"during the ramp to frame {start}",
+                     "approach": f"during the approach to frame {start}",
+                     "draw": f"while drawing, at frame {state.frame} of {prog.frames}",
+                     "stop": f"during the lift after a stop at frame {state.frame}"}
+            needle = self._needle(np.asarray(state.q, dtype=np.float64))
+            names = stop.names()
+            if status == "paused":
+                later = (f" (then {', '.join(names[1:])}: noted and ignored, so as never to"
+                         " cut a lift short)" if len(names) > 1 else "")
+                state.reason = (
+                    f"{names[0]} {where[stopped_in]}: "
+                    + ("the lift to the clearance height completed" if lifted else
+                       "no lift was needed")
+                    + f"; the last pose sent has the needle tip at {needle}; every output "
+                    f"is off{later}")
+            elif status == "done":
+                state.reason = ""
+            else:
+                state.reason = (
+                    f"{error or 'an unexpected error'}. Stopped {where[stage]}; the last pose "
+                    f"fully sent has the needle tip at {needle}; "
+                    + {"start": "nothing was sent", "lift": "the first lift did not complete",
+                       "stop": "the lift did not complete"}.get(stage, "no lift was tried")
+                    + "; switching every output off "
+                    + ("went through" if outputs_off else
+                       "failed too: the servos may still hold that pose"))
+            try:
+                logs.close()
+            finally:
+                state.save(self.state_file)
+                stop.restore()
         wall = time.perf_counter() - t0
-        summary: JsonDict = {"name": self.name, "backend": "arm", "dry_run": self.dry_run,
-                   "status": status, "reason": reason, "frames": prog.frames,
-                   "start_frame": start, "stopped_at_frame": frame,
-                   "frames_sent": stream.sent if stream else 0,
-                   "channel_writes": stream.writes if stream else 0,
-                   "session": session_no, "wall_s": wall, "program": digest}
+        summary: JsonDict = {
+            "name": self.name, "backend": "arm", "dry_run": self.dry_run, "status": status,
+            "reason": state.reason, "frames": prog.frames, "start_frame": start,
+            "stopped_at_frame": state.frame if status != "done" else prog.frames,
+            "after_crash": begin.crashed,
+            "frames_sent": stream.sent if stream else 0,
+            "channel_writes": stream.writes if stream else 0,
+            "session": session_no, "wall_s": wall, "program": digest}
         if status == "paused":
-            raise Paused(f"{reason}: the needle is up and every output is off; continue "
-                         "with resume=true")
+            raise Paused(f"{state.reason}. Continue with resume=true")
         if status == "failed":
             raise TattotronixError(
-                f"{reason}. Stopped at frame {frame} of {prog.frames}; every output was "
-                f"switched off (if the board still answers) and the state is saved in "
-                f"{self.state_file}: fix the bus, then continue with resume=true")
+                f"{state.reason}. The state is saved in {self.state_file}: fix the cause, "
+                "then continue with resume=true (it lifts the needle first)")
         return summary
-
-    def _next_session(self, fresh: bool) -> int:
-        path = self.run_dir / "poses.jsonl"
-        if fresh or not path.exists():
-            return 1
-        last = 0
-        with open(path, encoding="utf-8") as fh:
-            for line in fh:
-                last = max(last, int(json.loads(line).get("session", 0)))
-        return last + 1
 
 
 def build_program(cfg: Config, desc: RobotDescription, t: Array, q: Array, qd: Array
@@ -407,8 +813,8 @@ def check_drawing_clear(cfg: Config, desc: RobotDescription, t: Array, q: Array)
 def draw_on_arm(cfg: Config, out: Outputs) -> JsonDict:
     """``draw.py backend=arm``: compile the drawing and stream it (see the module docstring).
 
-    Writes ``data/runs/<name>-arm/{i2c.jsonl (dry run), poses.jsonl}``, the arm state file,
-    and on completion ``data/metrics/runs/<name>-arm.json``.
+    Appends to ``data/runs/<name>-arm/{i2c.jsonl (dry run), poses.jsonl}``, writes the arm
+    state file, and on completion ``data/metrics/runs/<name>-arm.json``.
     """
     from tattotronix.control.drawing import resolve_drawing
     from tattotronix.pipeline import ik_settings
@@ -417,10 +823,12 @@ def draw_on_arm(cfg: Config, out: Outputs) -> JsonDict:
     if cfg.window is not None:
         raise TattotronixError("window= is for simulated backends; the arm draws the whole "
                                "drawing (resume=true continues a stopped one)")
+    calibration_from_config(cfg.hardware, desc.joint_names)  # a bad one fails before planning
     drawing = resolve_drawing(cfg, out.data, desc)
     check_drawing_clear(cfg, desc, drawing.t, drawing.q)
     program, calib = build_program(cfg, desc, drawing.t, drawing.q, drawing.qd)
-    clearance = float(cfg.toolpath.panel_origin[2]) + cfg.toolpath.clearance_m
+    surface = float(cfg.toolpath.panel_origin[2])
+    clearance = surface + cfg.toolpath.clearance_m
     speed = float(cfg.hardware.ramp_rad_s)
     if not (np.isfinite(speed) and speed > 0):
         raise TattotronixError(f"hardware.ramp_rad_s={speed}: give a positive speed in rad/s")
@@ -428,7 +836,7 @@ def draw_on_arm(cfg: Config, out: Outputs) -> JsonDict:
         name=drawing.name, program=program, calib=calib, chain=Chain.from_description(desc),
         run_dir=run_dir(out.data, run_label(drawing.name, "arm")),
         state_file=out.path(*Path(str(cfg.hardware.state_file)).parts),
-        clearance_z_m=clearance, feed_m_s=cfg.toolpath.feed_mark_m_s,
+        clearance_z_m=clearance, surface_z_m=surface, feed_m_s=cfg.toolpath.feed_mark_m_s,
         ramp_rad_s=speed, ik=ik_settings(cfg.ik), dry_run=bool(cfg.dry_run),
         realtime=bool(cfg.realtime), resume=bool(cfg.resume),
         fail_after_writes=cfg.hardware.fail_after_writes,

@@ -8,7 +8,7 @@ the nominal 25 MHz oscillator one count lasts ``(121 + 1) / 25e6`` s = 4.88 us.
 * :class:`PCA9685` drives the board through any object with smbus2's ``SMBus`` methods
   (:class:`SMBusLike`). Channel writes are one 4-byte block write each, so a channel is
   never half-updated. Used as a context manager it always ends with every output off: on
-  normal exit, on an exception, and on SIGINT/SIGTERM.
+  normal exit, on an exception, and on SIGINT/SIGTERM/SIGHUP.
 * :class:`RecordingBus` stands in for the board (dry runs and tests): it records every
   write as ``{"addr": 64, "reg": 0, "data": [16]}`` (the ``i2c.jsonl`` transcript line).
 * :func:`open_bus` opens the Linux I2C device and checks that the board answers, with
@@ -79,7 +79,15 @@ PRESCALE_MIN, PRESCALE_MAX = 3, 255
 OSCILLATOR_SETTLE_S = 500e-6  # datasheet: oscillator stable 500 us after waking
 OFF_BLOCK = (0x00, 0x00, 0x00, FULL_OFF)  # on = 0, off = full-off bit
 
-_I2CDETECT = "`i2cdetect -y 1` should list 40"
+
+# what stops a process holding the board: Ctrl-C, kill, and a closed terminal (POSIX only)
+_STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP")
+                      if hasattr(signal, name))
+
+
+def _i2cdetect(address: int) -> str:
+    """The end of a bus error's advice ("check ... and that <this>")."""
+    return f"`i2cdetect -y 1` lists the board at 0x{address:02x}"
 
 
 class HardwareError(TattotronixError):
@@ -213,11 +221,12 @@ class PCA9685:
     is never refused.
 
     As a context manager it always ends with every output off (a hobby servo without
-    pulses stops driving): on normal exit, on an exception, and on SIGINT / SIGTERM. While
-    inside the context (entered from the main thread) SIGINT and SIGTERM handlers switch
-    everything off, call the handler that was installed before (if it was a Python
-    callable), then raise ``KeyboardInterrupt`` (SIGINT) or ``SystemExit(128 + signum)``
-    (SIGTERM, i.e. 143). A signal that was ignored (``SIG_IGN``) stays ignored. The previous
+    pulses stops driving): on normal exit, on an exception, and on SIGINT / SIGTERM /
+    SIGHUP (a closed terminal). While inside the context (entered from the main thread)
+    their handlers switch everything off, call the handler that was installed before (if it
+    was a Python callable), then raise ``KeyboardInterrupt`` (SIGINT) or ``SystemExit(128 +
+    signum)`` (143 for SIGTERM, 129 for SIGHUP). A signal that was ignored (``SIG_IGN``,
+    e.g. SIGHUP under ``nohup``) stays ignored. The previous
     handlers are restored on exit. The bus is not closed: whoever opened it closes it.
 
     Example::
@@ -232,7 +241,7 @@ class PCA9685:
         oscillator_hz: the board's oscillator (Hz), nominally 25 MHz; boards measure 24 to
             27 MHz, so calibrate per board for accurate pulse widths.
         sleep: waits the given seconds (the 500 us oscillator settle); injectable for tests.
-        handle_signals: install the SIGINT / SIGTERM handlers inside the context.
+        handle_signals: install the SIGINT / SIGTERM / SIGHUP handlers inside the context.
 
     Raises:
         OutOfRangeError: address outside 0...127, oscillator not finite and positive.
@@ -315,7 +324,7 @@ class PCA9685:
             f"I2C write to the PCA9685 at 0x{self.address:02x} failed (register "
             f"0x{reg:02x} {_register_name(reg)}, data [{' '.join(f'{b:02x}' for b in data)}]):"
             f" {err}. Check the wiring (SDA, SCL, GND, VCC), that the board is powered and "
-            f"that {_I2CDETECT}"
+            f"that {_i2cdetect(self.address)}"
         )
 
     def _write_byte(self, reg: int, value: int) -> None:
@@ -359,13 +368,13 @@ class PCA9685:
             except OSError as err:
                 raise BusError(
                     f"I2C read of PRESCALE from the PCA9685 at 0x{self.address:02x} failed: "
-                    f"{err}. Check the wiring and power, and that {_I2CDETECT}"
+                    f"{err}. Check the wiring and power, and that {_i2cdetect(self.address)}"
                 ) from err
             if back != p:
                 raise BusError(
                     f"the PCA9685 at 0x{self.address:02x} reads back PRESCALE {back} after "
                     f"{p} was written: is 0x{self.address:02x} really a PCA9685? Check the "
-                    f"address jumpers and that {_I2CDETECT}"
+                    f"address jumpers and that {_i2cdetect(self.address)}"
                 )
         self._prescale = p
         log.info(
@@ -421,7 +430,7 @@ class PCA9685:
             )
         self._entered = True
         if self._handle_signals and threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
+            for sig in _STOP_SIGNALS:
                 previous = signal.getsignal(sig)
                 if previous == signal.SIG_IGN:
                     continue  # the process chose to ignore it; so do we

@@ -13,10 +13,11 @@ from collections.abc import Callable, Iterable
 
 from tattotronix.errors import TattotronixError
 from tattotronix.hardware.pca9685 import CHANNELS, PCA9685
+from tattotronix.hardware.servos import HOBBY_MAX_US, HOBBY_MIN_US
 
 __all__ = ["MAX_US", "MIN_US", "hold_pulses", "parse_width"]
 
-MIN_US, MAX_US = 400.0, 2600.0
+MIN_US, MAX_US = HOBBY_MIN_US, HOBBY_MAX_US  # what a hobby servo accepts (servos.py)
 
 
 def parse_width(text: str) -> float:

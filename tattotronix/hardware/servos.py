@@ -25,7 +25,9 @@ A calibration file (``servo_calibration.yaml``)::
     tool: {channel: 6}
 
 :meth:`Calibration.from_mapping` checks every key and value and reports **all** problems
-in one :class:`CalibrationError`, each naming the joint and the key.
+in one :class:`CalibrationError`, each naming the joint and the key. The limits must lie
+within the 400...2600 us a hobby servo accepts (``HOBBY_MIN_US``, ``HOBBY_MAX_US``; the
+range ``stages/servo_pulse.py`` holds).
 
 The declared values (:func:`default_calibration`) are catalogue figures, **not measured**:
 calibrate each servo (README, "Calibrating the servos") before trusting the pulse widths.
@@ -53,6 +55,8 @@ __all__ = [
     "CalibrationError",
     "DEFAULT_CALIBRATION",
     "DEFAULT_JOINT_NAMES",
+    "HOBBY_MAX_US",
+    "HOBBY_MIN_US",
     "JointServo",
     "ServoChannel",
     "default_calibration",
@@ -67,6 +71,10 @@ DECLARED_ZERO_US = 1500.0
 DECLARED_US_PER_RAD = 636.62
 DECLARED_MIN_US = 500.0
 DECLARED_MAX_US = 2500.0
+# What a hobby servo accepts at all: stages/servo_pulse.py refuses widths outside these
+# (tattotronix/hardware/pulse.py), and a calibration may not reach beyond them either.
+HOBBY_MIN_US = 400.0
+HOBBY_MAX_US = 2600.0
 
 JOINT_KEYS_A = ("channel", "zero_us", "us_per_rad", "min_us", "max_us")
 JOINT_KEYS_B = ("channel_b", "zero_us_b", "us_per_rad_b")
@@ -149,8 +157,21 @@ def _servo_problems(
             if check_limits:
                 out.append(f"{where}.{key}: {_fmt(value)} must be a finite pulse width in us")
             limits_ok = False
-    if limits_ok and check_limits and min_us <= 0:
-        out.append(f"{where}.min_us: {_fmt(min_us)} must be above 0 us (0 means no pulse)")
+    if limits_ok and check_limits:
+        if min_us <= 0:
+            out.append(f"{where}.min_us: {_fmt(min_us)} must be above 0 us (0 means no pulse)")
+        elif min_us < HOBBY_MIN_US:
+            out.append(
+                f"{where}.min_us: {_fmt(min_us)} us is below {_fmt(HOBBY_MIN_US)} us, the "
+                "narrowest pulse a hobby servo accepts (stages/servo_pulse.py refuses it too):"
+                " measure the servo's end stop and set min_us a little inside it"
+            )
+        if max_us > HOBBY_MAX_US:
+            out.append(
+                f"{where}.max_us: {_fmt(max_us)} us is above {_fmt(HOBBY_MAX_US)} us, the "
+                "widest pulse a hobby servo accepts (stages/servo_pulse.py refuses it too):"
+                " measure the servo's end stop and set max_us a little inside it"
+            )
     if limits_ok and min_us >= max_us:
         if check_limits:
             out.append(
@@ -239,7 +260,8 @@ class ServoChannel:
 
     Raises:
         CalibrationError: channel outside 0...15, scale zero or not finite, limits not
-            ``0 < min_us < max_us``, zero outside them.
+            ``400 <= min_us < max_us <= 2600`` (what a hobby servo accepts), zero outside
+            them.
     """
 
     channel: int
@@ -480,9 +502,10 @@ class Calibration:
         """Build and validate a calibration from a plain dict or an OmegaConf DictConfig.
 
         Every problem is collected (a channel used twice, a channel outside 0...15,
-        ``min_us >= max_us``, ``min_us <= 0``, a zero outside the limits, a zero or
-        non-finite scale, a non-numeric value such as ``"15OO"``, a missing or unknown key,
-        a missing or unknown joint) and reported together.
+        ``min_us >= max_us``, ``min_us <= 0``, limits beyond the 400...2600 us a hobby
+        servo accepts, a zero outside the limits, a zero or non-finite scale, a
+        non-numeric value such as ``"15OO"``, a missing or unknown key, a missing or
+        unknown joint) and reported together.
 
         Args:
             mapping: the calibration (keys as in the module docstring).
