@@ -27,7 +27,8 @@ def main(cfg: Config, out: Outputs) -> None:
     """Load the artwork, write its raster and metrics."""
     name = artwork_name(cfg.artwork)
     art = load_artwork(
-        cfg.artwork.source, cfg.mask.width_mm, cfg.mask.res_mm, cfg.artwork.max_pixels, name
+        cfg.artwork.source, cfg.mask.width_mm, cfg.mask.res_mm, cfg.artwork.max_pixels, name,
+        svg_local_files=cfg.artwork.svg_local_files,
     )
     ink, _, _ = otsu_ink(art.grey)
     width_mm, height_mm = art.size_mm

@@ -29,9 +29,11 @@ def main(cfg: Config, out: Outputs) -> None:
     try:
         with Image.open(src) as im:
             grey = np.asarray(im.convert("L"), dtype=np.float64)
-    except OSError as exc:
+    except (OSError, SyntaxError, ValueError, EOFError, MemoryError,
+            Image.DecompressionBombError) as exc:  # truncated, corrupt, not a PNG, huge
         raise TattotronixError(
-            f"cannot read {src} ({exc}); re-run the 'artwork' stage"
+            f"cannot read {src} ({type(exc).__name__}: {' '.join(str(exc).split())}); "
+            "re-run the 'artwork' stage"
         ) from None
     want_w = max(round(cfg.mask.width_mm / cfg.mask.res_mm), 1)
     if grey.shape[1] != want_w:
@@ -47,6 +49,7 @@ def main(cfg: Config, out: Outputs) -> None:
         cfg.mask.min_region_mm2,
         edge_sigma_px=cfg.mask.edge_sigma_px,
         edge_k=cfg.mask.edge_k,
+        auto_invert=cfg.mask.auto_invert,
     )
     npz = out.path("mask", f"{name}.npz")
     mask.save(out.tmp_path(npz))

@@ -10,12 +10,10 @@ under ``original_order``, the same figures for the original's ordering rule).
 from __future__ import annotations
 
 import logging
-import zipfile
 
 from tattotronix.art.artwork import artwork_name
 from tattotronix.art.grid import InkMask
 from tattotronix.config.schema import Config
-from tattotronix.errors import TattotronixError
 from tattotronix.io.artifacts import ToolpathRecord, make_provenance
 from tattotronix.io.outputs import Outputs
 from tattotronix.path.figure import toolpath_figure
@@ -30,10 +28,7 @@ def main(cfg: Config, out: Outputs) -> None:
     """Plan the toolpath of one artwork's mask; write the path, figure and metrics."""
     name = artwork_name(cfg.artwork)
     src = out.require(out.path("mask", f"{name}.npz"), "mask")
-    try:
-        mask = InkMask.load(src)
-    except (OSError, KeyError, ValueError, zipfile.BadZipFile) as exc:
-        raise TattotronixError(f"cannot read {src} ({exc}); re-run the 'mask' stage") from None
+    mask = InkMask.load(src)  # refuses a corrupt file, naming it and the 'mask' stage
     params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
     tp = plan_toolpath(mask, params)
 

@@ -17,7 +17,11 @@ A stage script is thin::
   settings (:class:`~tattotronix.config.schema.Config`) the body gets; the library takes
   those (or one section of them), never a ``DictConfig``.
 * A :class:`TattotronixError` (bad input, unreachable drawing, ...) ends the run with its
-  one-line message and exit code 2; no traceback, and no partial output.
+  one-line message and exit code 2; no traceback, and no partial output. So does a bad
+  command line (an override Hydra cannot parse, an unknown key, a value of the wrong type
+  or out of its range), and running out of memory.
+* Ctrl-C (``KeyboardInterrupt``) ends it with one line and exit code 130; the outputs
+  staged so far are removed (:meth:`Outputs.transaction`).
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from tattotronix.config.params import load_params, to_settings
+from tattotronix.config.params import load_params, one_line, to_settings
 from tattotronix.config.schema import Config
 from tattotronix.errors import ConfigError, TattotronixError
 from tattotronix.io.outputs import Outputs
@@ -42,6 +46,16 @@ __all__ = ["StageBody", "logs_to_stderr", "run_stage"]
 StageBody = Callable[[Config, Outputs], None]
 
 log = logging.getLogger("tattotronix")
+
+#: the exit code of a run stopped by Ctrl-C (128 + SIGINT, as a shell reports it)
+EXIT_INTERRUPTED = 130
+#: the exit code of a refused run (bad input, bad configuration)
+EXIT_REFUSED = 2
+
+
+def _refuse(name: str, message: str) -> SystemExit:
+    print(f"{name}: error: {message}", file=sys.stderr)
+    return SystemExit(EXIT_REFUSED)
 
 
 def logs_to_stderr() -> None:
@@ -66,15 +80,17 @@ def _execute(name: str, body: StageBody, cfg: DictConfig,
     try:
         settings = to_settings(cfg)  # the one conversion: typed and frozen from here on
     except ConfigError as exc:
-        print(f"{name}: error: {exc}", file=sys.stderr)
-        raise SystemExit(2) from None
+        raise _refuse(name, str(exc)) from None
     out = Outputs(settings.paths.data, sweep_overrides)
     try:
         with out.transaction():
             body(settings, out)
     except (TattotronixError, ConfigError) as exc:
-        print(f"{name}: error: {exc}", file=sys.stderr)
-        raise SystemExit(2) from None
+        raise _refuse(name, str(exc)) from None
+    except MemoryError as exc:  # numpy's ArrayMemoryError says how much it wanted
+        raise _refuse(name, f"out of memory ({one_line(exc)}): nothing written; use "
+                      "coarser settings (toolpath.pitch_mm, toolpath.step_mm, mask.res_mm) "
+                      "or a smaller drawing") from None
     log.info("%s: done in %.2f s", name, time.perf_counter() - t0)
 
 
@@ -84,7 +100,7 @@ def _validated(cfg: DictConfig) -> DictConfig:
         plain = OmegaConf.to_container(cfg, resolve=True)
         merged = OmegaConf.merge(OmegaConf.structured(Config), plain)
     except Exception as exc:
-        raise ConfigError(f"bad configuration: {exc}") from None
+        raise ConfigError(f"bad configuration: {one_line(exc)}") from None
     assert isinstance(merged, DictConfig)
     OmegaConf.set_readonly(merged, True)
     return merged
@@ -92,13 +108,33 @@ def _validated(cfg: DictConfig) -> DictConfig:
 
 def run_stage(name: str, body: StageBody) -> None:
     """Run a stage body with its config. See the module docstring."""
+    try:
+        _run(name, body)
+    except KeyboardInterrupt:
+        print(f"{name}: interrupted (Ctrl-C): stopped, nothing written", file=sys.stderr)
+        raise SystemExit(EXIT_INTERRUPTED) from None
+
+
+def _parse_hint(exc: BaseException) -> str:
+    """How to quote an override Hydra's grammar refuses (README, "Configuration")."""
+    override = getattr(exc, "override", None)
+    if not isinstance(override, str) or "=" not in override:
+        return ""
+    key, value = override.split("=", 1)
+    if value.isascii() and not set(value) & set("()\\"):
+        return ""
+    quoted = f"{key}='{value}'" if "'" not in value else f'{key}="{value}"'
+    return (f"; quote a value with non-ASCII letters or special characters: \"{quoted}\" "
+            "(README, \"Configuration\")")
+
+
+def _run(name: str, body: StageBody) -> None:
     argv = sys.argv[1:]
     if os.environ.get("DVC_STAGE"):
         try:
             cfg = load_params(argv, root=Path.cwd())
         except ConfigError as exc:
-            print(f"{name}: error: {exc}", file=sys.stderr)
-            raise SystemExit(2) from None
+            raise _refuse(name, str(exc)) from None
         OmegaConf.set_readonly(cfg, True)  # load_params has merged it into the schema
         _execute(name, body, cfg)
         return
@@ -111,16 +147,39 @@ def run_stage(name: str, body: StageBody) -> None:
 
         conf_dir = CONF_DIR
 
+    from hydra.errors import HydraException, OverrideParseException
+    from omegaconf.errors import OmegaConfBaseException
+
+    started = False
+
     @hydra.main(config_path=str(conf_dir), config_name="config", version_base="1.3")
     def _main(cfg: DictConfig) -> None:
+        nonlocal started
+        started = True
         try:
             checked = _validated(cfg)
         except ConfigError as exc:
-            print(f"{name}: error: {exc}", file=sys.stderr)
-            raise SystemExit(2) from None
+            raise _refuse(name, str(exc)) from None
         _execute(name, body, checked, _sweep_overrides())
 
-    _main()
+    # Hydra reports a bad command line (an override it cannot parse, an unknown key, a
+    # value of the wrong type) over several lines; with HYDRA_FULL_ERROR it raises the
+    # error instead, and we say it in one line. Errors of the stage body are not ours to
+    # shorten: they keep their traceback.
+    full_error = os.environ.get("HYDRA_FULL_ERROR")
+    os.environ["HYDRA_FULL_ERROR"] = "1"
+    try:
+        _main()
+    except (HydraException, OmegaConfBaseException) as exc:
+        if started:
+            raise
+        hint = _parse_hint(exc) if isinstance(exc, OverrideParseException) else ""
+        raise _refuse(name, f"bad configuration: {one_line(exc)}{hint}") from None
+    finally:
+        if full_error is None:
+            os.environ.pop("HYDRA_FULL_ERROR", None)
+        else:
+            os.environ["HYDRA_FULL_ERROR"] = full_error
 
 
 def _sweep_overrides() -> list[str] | None:

@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import base64
 import io
 import os
+import re
 import struct
 import subprocess
 import sys
@@ -235,6 +237,19 @@ BAD_INPUTS: dict[str, tuple[str, bytes | None, str]] = {
         f"<svg {NS} viewBox='0 0 1 100000'><rect width='1' height='9'/></svg>".encode(),
         "decompression bomb",
     ),
+    # an SVG must be self-contained: resvg drops a URL silently and draws a local file
+    "svg_url_image": (
+        "url.svg",
+        (f"<svg {NS} viewBox='0 0 60 40'><image href='http://example.com/a.png' width='60' "
+         "height='40'/><rect width='20' height='20'/></svg>").encode(),
+        "'http://example.com/a.png'",
+    ),
+    "svg_absolute_image": (
+        "abs.svg",
+        (f"<svg {NS} xmlns:xlink='http://www.w3.org/1999/xlink' viewBox='0 0 60 40'><image "
+         f"xlink:href='{builtin_path('portrait')}' width='60' height='40'/></svg>").encode(),
+        "refers to external files",
+    ),
 }
 
 
@@ -301,3 +316,50 @@ def test_stage_refuses_bad_input_cleanly(stage_runs, key: str) -> None:
     assert len(lines) == 1, run.stderr
     assert lines[0].startswith("artwork: error: ") and BAD_INPUTS[key][2] in lines[0]
     assert [p for p in out.rglob("*") if p.is_file()] == []
+
+
+def _svg_with_image(href: str) -> str:
+    return (f"<svg {NS} viewBox='0 0 60 40'><image href='{href}' x='10' y='10' width='40' "
+            "height='20'/></svg>")
+
+
+def test_svg_in_any_encoding_xml_accepts(tmp_path: Path) -> None:
+    """A Latin-1 SVG with its declaration is read (it was refused as "not UTF-8"), so is
+    UTF-16 with its byte-order mark; a file whose bytes break its declaration is refused."""
+    body = f"<svg {NS} viewBox='0 0 60 40'><title>caf\xe9 \xbd</title>" \
+        "<rect x='10' y='10' width='40' height='20'/></svg>"
+    latin = tmp_path / "latin.svg"
+    latin.write_bytes(("<?xml version='1.0' encoding='ISO-8859-1'?>\n" + body).encode("latin-1"))
+    utf16 = tmp_path / "utf16.svg"
+    utf16.write_bytes(("<?xml version='1.0' encoding='UTF-16'?>" + body).encode("utf-16"))
+    plain = tmp_path / "plain.svg"
+    plain.write_text(body, encoding="utf-8")
+    want = _load(plain, width_mm=60.0).grey
+    for path in (latin, utf16):
+        np.testing.assert_array_equal(_load(path, width_mm=60.0).grey, want)
+    lying = tmp_path / "lying.svg"
+    lying.write_bytes(("<?xml version='1.0' encoding='UTF-8'?>" + body).encode("latin-1"))
+    with pytest.raises(TattotronixError, match="lying.svg is not a text SVG file: it is not UTF"):
+        _load(lying, width_mm=60.0)
+
+
+def test_svg_local_files_are_an_option(tmp_path: Path) -> None:
+    Image.fromarray(_rect_image()).save(tmp_path / "pic.png")
+    svg = tmp_path / "art.svg"
+    svg.write_text(_svg_with_image("pic.png"))
+    with pytest.raises(TattotronixError, match=r"<image href> 'pic.png'.*svg_local_files=true"):
+        _load(svg, width_mm=60.0)
+    art = _load(svg, width_mm=60.0, svg_local_files=True)
+    assert (art.grey < 128).mean() > 0.02  # the picture is drawn
+    outside = tmp_path / "sub"
+    outside.mkdir()
+    for href, why in (("../pic.png", "only files in the SVG's own folder"),
+                      (str(tmp_path / "pic.png"), "only files in the SVG's own folder"),
+                      ("missing.png", "no such file"),
+                      ("https://example.com/x.png", "https://example.com/x.png")):
+        (outside / "art.svg").write_text(_svg_with_image(href))
+        with pytest.raises(TattotronixError, match=re.escape(why)):
+            _load(outside / "art.svg", width_mm=60.0, svg_local_files=True)
+    data = "data:image/png;base64," + base64.b64encode(_encoded("PNG")).decode()
+    (outside / "art.svg").write_text(_svg_with_image(data))
+    assert (_load(outside / "art.svg", width_mm=60.0).grey < 128).mean() > 0.02

@@ -293,7 +293,7 @@ def test_stage_bad_pitch_leaves_nothing(tmp_path: Path) -> None:
     multi_region_mask().save(tmp_path / "mask" / "test.npz")
     res = _run_stage(tmp_path, "toolpath.pitch_mm=0")
     assert res.returncode == 2
-    assert "toolpath.pitch_mm must be > 0" in res.stderr
+    assert "toolpath.pitch_mm must be >= 0.05 and <= 100 mm (got 0)" in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["mask", "test.npz"]
 

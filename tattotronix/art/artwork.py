@@ -10,13 +10,17 @@ per pixel, with the source's aspect ratio (docs/original.md, "2.1 Artwork and ma
   so a thin line in a large photo is thinned, not skipped.
 * SVG goes through resvg (``resvg_py``), rendered at twice the mask resolution and then
   averaged down 2 x 2, so each edge pixel is decided by four sub-pixels and small
-  counters stay open.
+  counters stay open. The file may be in any encoding XML allows (its declaration, or a
+  byte-order mark, says which). It must be self-contained: a reference to another file or
+  to the network (``<image href="photo.png">``, ``url(http://...)``, ``@import``) is
+  refused, naming it, unless ``artwork.svg_local_files`` allows files in the SVG's own
+  folder; embedded ``data:`` images and ``#id`` references are always fine.
 
 Every way an input can be unusable ends in a one-line :class:`TattotronixError` that says
 what was wrong and what to do: a missing or unsupported file, a corrupt or truncated
 image, a file that is not an image, an SVG that does not parse, a decompression bomb
-(checked on the header or the declared SVG size, before decoding), and an image with no
-drawable ink (one flat tone).
+(checked on the header or the declared SVG size, before decoding), an SVG that refers to
+external files, and an image with no drawable ink (one flat tone).
 """
 
 from __future__ import annotations
@@ -49,7 +53,9 @@ __all__ = [
     "builtin_path",
     "grid_shape",
     "load_artwork",
+    "read_svg",
     "resolve_source",
+    "svg_external_refs",
     "svg_intrinsic_size",
 ]
 
@@ -88,6 +94,11 @@ _SVG_UNITS_PX = {
 }
 _SVG_LENGTH = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([a-z%]*)\s*$")
 _SVG_DEFAULT_PX = 100.0  # resvg's size for an SVG with neither width/height nor viewBox
+_XML_DECL = re.compile(r"^\s*<\?xml\b[^>]*\?>")
+_XML_ENCODING = re.compile(rb"^\s*<\?xml\b[^>]*?\bencoding\s*=\s*[\"']([A-Za-z][\w.:-]*)[\"']")
+_CSS_URL = re.compile(r"url\(\s*([\"']?)([^\"')]*)\1\s*\)|@import\s+([\"'])([^\"']*)\3")
+_HREF_ATTRS = ("href", "{http://www.w3.org/1999/xlink}href", "src")
+_SHOWN_REFS = 3  # external references named in a refusal
 
 
 @dataclass(frozen=True)
@@ -358,20 +369,127 @@ def svg_intrinsic_size(text: str, label: str = "SVG") -> tuple[float, float]:
     return (w or _SVG_DEFAULT_PX, h or _SVG_DEFAULT_PX)
 
 
+def read_svg(path: Path, label: str = "SVG") -> str:
+    """The text of an SVG file, decoded as XML says: the encoding its declaration names
+    (``<?xml version="1.0" encoding="ISO-8859-1"?>``), else its byte-order mark, else
+    UTF-8. The declaration is dropped from the text (it names bytes no longer there).
+
+    Raises:
+        TattotronixError: the file cannot be read, names an unknown encoding, or is not
+            text in its encoding.
+    """
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise TattotronixError(f"cannot read {label}: {_one_line(exc)}") from None
+    if raw.startswith((b"\xff\xfe", b"\xfe\xff")):
+        encoding = "utf-16"
+    elif raw.startswith(b"\xef\xbb\xbf"):
+        encoding = "utf-8-sig"
+    else:
+        m = _XML_ENCODING.match(raw)
+        encoding = m.group(1).decode("ascii") if m else "utf-8"
+    try:
+        text = raw.decode(encoding)
+    except LookupError:
+        raise TattotronixError(f"{label} declares an unknown encoding {encoding!r}; save it "
+                               "as UTF-8") from None
+    except UnicodeDecodeError as exc:
+        raise TattotronixError(f"{label} is not a text SVG file: it is not {encoding} "
+                               f"({_one_line(exc)}); fix its encoding declaration or save it "
+                               "as UTF-8") from None
+    return _XML_DECL.sub("", text, count=1)
+
+
+def _is_internal(ref: str) -> bool:
+    """A reference inside the SVG itself: ``#id``, or an embedded ``data:`` URI."""
+    ref = ref.strip()
+    return ref == "" or ref.startswith("#") or ref.lower().startswith("data:")
+
+
+def svg_external_refs(text: str, label: str = "SVG") -> list[tuple[str, str]]:
+    """Every reference of an SVG to something outside it, as ``(where, reference)``:
+    ``("<image href>", "photo.png")`` (also ``xlink:href`` and ``src``), a CSS ``url(...)``
+    or ``@import`` in any attribute (``style``, ``fill``, ...) or in a ``<style>`` element.
+    ``#id`` references and ``data:`` URIs are internal and not listed.
+
+    Raises:
+        TattotronixError: the text is not well-formed XML.
+    """
+    try:
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise TattotronixError(
+            f"{label} does not parse as SVG: {_one_line(exc)}; fix or re-export it"
+        ) from None
+
+    def css(where: str, value: str) -> list[tuple[str, str]]:
+        refs = (m.group(2) if m.group(2) is not None else m.group(4)
+                for m in _CSS_URL.finditer(value))
+        return [(where, r.strip()) for r in refs if not _is_internal(r)]
+
+    found: list[tuple[str, str]] = []
+    for el in root.iter():
+        if not isinstance(el.tag, str):
+            continue
+        tag = el.tag.rsplit("}", 1)[-1]
+        for attr, value in el.attrib.items():
+            where = f"<{tag} {attr.rsplit('}', 1)[-1]}>"
+            if attr in _HREF_ATTRS and not _is_internal(value):
+                found.append((where, value.strip()))
+            found += css(where, value)
+        if tag == "style" and el.text:
+            found += css("<style>", el.text)
+    return list(dict.fromkeys(found))
+
+
+def _local_ref_target(ref: str, folder: Path) -> Path | None:
+    """The file a reference names in ``folder`` (or below it), or None for a URL, an
+    absolute path or a path that leaves the folder."""
+    target = ref.split("#", 1)[0]
+    if (not target or re.match(r"^[A-Za-z][A-Za-z0-9+.-]*:", target)
+            or target.startswith(("/", "\\")) or Path(target).is_absolute()):
+        return None
+    path = (folder / target).resolve()
+    return path if path.is_relative_to(folder.resolve()) else None
+
+
+def _check_svg_refs(text: str, path: Path, label: str, local_files: bool) -> None:
+    """Refuse an SVG's external references (see the module docstring)."""
+    bad = []
+    for where, ref in svg_external_refs(text, label):
+        shown = f"{where} {ref!r}"
+        if local_files:
+            target = _local_ref_target(ref, path.parent)
+            if target is not None and target.is_file():
+                continue
+            if target is not None:
+                shown += " (no such file)"
+        bad.append(shown)
+    if not bad:
+        return
+    listed = ", ".join(bad[:_SHOWN_REFS]) + (
+        f" and {len(bad) - _SHOWN_REFS} more" if len(bad) > _SHOWN_REFS else "")
+    if local_files:
+        fix = ("only files in the SVG's own folder are allowed (artwork.svg_local_files=true):"
+               " move them there, or embed them as data: URIs")
+    else:
+        fix = ("embed them (data: URIs), or set artwork.svg_local_files=true to allow files "
+               "in the SVG's own folder")
+    raise TattotronixError(f"{label} refers to external files or URLs, which are not drawn: "
+                           f"{listed}; {fix}")
+
+
 def _render_svg(
-    path: Path, width_mm: float, res_mm: float, max_pixels: int
+    path: Path, width_mm: float, res_mm: float, max_pixels: int, local_files: bool = False
 ) -> tuple[NDArray[np.float64], tuple[int, int], tuple[int, int]]:
     """Render an SVG at :data:`SVG_OVERSAMPLE` x the grid, average down to the grid."""
     import resvg_py
 
     label = f"artwork {path}"
-    try:
-        text = path.read_text(encoding="utf-8")
-    except UnicodeDecodeError:
-        raise TattotronixError(f"{label} is not a text SVG file (not UTF-8)") from None
-    except OSError as exc:
-        raise TattotronixError(f"cannot read {label}: {_one_line(exc)}") from None
+    text = read_svg(path, label)
     size = svg_intrinsic_size(text, label)
+    _check_svg_refs(text, path, label, local_files)
     out_h, out_w = grid_shape(size, width_mm, res_mm)
     render_w = SVG_OVERSAMPLE * out_w
     render_h = max(round(render_w * size[1] / size[0]), 1)
@@ -382,7 +500,8 @@ def _render_svg(
     )
     try:
         png = resvg_py.svg_to_bytes(
-            svg_string=text, width=render_w, dpi=CSS_DPI, resources_dir=str(path.parent)
+            svg_string=text, width=render_w, dpi=CSS_DPI,
+            resources_dir=str(path.parent) if local_files else None,
         )
     except (ValueError, RuntimeError, OSError) as exc:
         raise TattotronixError(
@@ -412,6 +531,8 @@ def load_artwork(
     res_mm: float,
     max_pixels: int,
     name: str | None = None,
+    *,
+    svg_local_files: bool = False,
 ) -> Artwork:
     """Read an artwork and put it on the mask grid.
 
@@ -422,13 +543,16 @@ def load_artwork(
         res_mm: mask grid pitch, mm per pixel.
         max_pixels: refuse sources (and SVG renderings, and grids) with more pixels.
         name: output name; default the source's stem.
+        svg_local_files: an SVG may refer to files in its own folder (``<image
+            href="photo.png">``); by default any external reference is refused.
 
     Returns:
         The grey raster on the grid.
 
     Raises:
         TattotronixError: a missing, unsupported, corrupt, oversized or non-image file,
-            an SVG that does not parse; :class:`NoInkError` for a flat image.
+            an SVG that does not parse or refers to external files; :class:`NoInkError` for
+            a flat image.
     """
     path = resolve_source(source)
     label = f"artwork {path}"
@@ -441,7 +565,8 @@ def load_artwork(
             "give a PNG, JPG or SVG file"
         )
     if suffix in SVG_SUFFIXES:
-        grey, original_px, render_px = _render_svg(path, width_mm, res_mm, max_pixels)
+        grey, original_px, render_px = _render_svg(path, width_mm, res_mm, max_pixels,
+                                                   svg_local_files)
         kind = "svg"
     else:
         im, fmt = _open_raster(path, label, max_pixels)

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from tattotronix.io.npz import save_npz
+from tattotronix.errors import StageInputMissing, TattotronixError
+from tattotronix.io.npz import READ_ERRORS, save_npz
 
 __all__ = ["InkMask"]
 
@@ -49,6 +51,38 @@ class InkMask:
 
     @classmethod
     def load(cls, path: Path) -> InkMask:
-        """Read what :meth:`save` wrote."""
-        with np.load(path, allow_pickle=False) as z:
-            return cls(z["ink"].astype(bool), float(z["res_mm"]), z["xs"], z["ys"])
+        """Read what :meth:`save` wrote (``data/mask/<name>.npz``).
+
+        Raises:
+            TattotronixError: the file is missing (run the ``mask`` stage), or truncated,
+                corrupt or not a mask (re-run it); the message names the file.
+        """
+        def refuse(why: str) -> TattotronixError:
+            return TattotronixError(f"cannot read {path} ({why}): re-run the 'mask' stage")
+
+        try:
+            loaded = np.load(path, allow_pickle=False)
+            if not isinstance(loaded, np.lib.npyio.NpzFile):
+                raise refuse("not an npz archive")
+            with loaded as z:
+                missing = [k for k in ("ink", "res_mm", "xs", "ys") if k not in z.files]
+                if missing:
+                    raise refuse(f"missing {', '.join(missing)}")
+                ink, res, xs, ys = z["ink"], z["res_mm"], z["xs"], z["ys"]
+        except TattotronixError:
+            raise
+        except FileNotFoundError:
+            raise StageInputMissing(Path(path), "mask") from None
+        except READ_ERRORS as exc:
+            raise refuse(f"{type(exc).__name__}: {exc}") from None
+        if (ink.ndim != 2 or ink.dtype.kind not in "biu" or res.size != 1
+                or res.dtype.kind not in "iuf" or xs.shape != (ink.shape[1],)
+                or ys.shape != (ink.shape[0],) or xs.dtype.kind != "f"
+                or ys.dtype.kind != "f"):
+            raise refuse(f"ink {ink.shape} {ink.dtype}, res_mm {res.shape}, xs {xs.shape}, "
+                         f"ys {ys.shape}: not a mask grid")
+        res_mm = float(res)
+        if not (math.isfinite(res_mm) and res_mm > 0 and np.all(np.isfinite(xs))
+                and np.all(np.isfinite(ys))):
+            raise refuse(f"res_mm={res_mm:g} or its coordinates are not finite and positive")
+        return cls(ink.astype(bool), res_mm, xs, ys)

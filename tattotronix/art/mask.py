@@ -5,7 +5,8 @@ Two methods (:class:`~tattotronix.config.schema.MaskMethod`):
 
 * ``threshold`` (logos, lettering, flat art): Otsu's threshold; the darker side is ink
   unless it is the majority, in which case the lighter side is (ink is the minority, so
-  artwork on a black field still yields the artwork).
+  artwork on a black field still yields the artwork). The log says so in one line when
+  it happens; ``mask.auto_invert=false`` always takes the darker side.
 * ``edges`` (photographs): Gaussian blur (``edge_sigma_px``), Sobel along both axes,
   gradient magnitude; ink where the magnitude exceeds ``mean + edge_k * std``.
 
@@ -145,11 +146,14 @@ def _as_uint8(grey: NDArray[np.generic]) -> NDArray[np.uint8]:
     return np.clip(np.rint(grey), 0, 255).astype(np.uint8)
 
 
-def otsu_ink(grey: NDArray[np.generic]) -> tuple[NDArray[np.bool_], float, bool]:
+def otsu_ink(grey: NDArray[np.generic], auto_invert: bool = True
+             ) -> tuple[NDArray[np.bool_], float, bool]:
     """Otsu's threshold with the minority polarity rule.
 
     Args:
         grey: (H, W) grey levels 0..255 (any real dtype; rounded to 8 bits).
+        auto_invert: take the light side when the dark side is the majority; False: the
+            dark side is always ink.
 
     Returns:
         ``(ink, t, inverted)``: the ink mask; the Otsu level t (dark is ``grey <= t``);
@@ -158,7 +162,7 @@ def otsu_ink(grey: NDArray[np.generic]) -> tuple[NDArray[np.bool_], float, bool]
     g8 = _as_uint8(grey)
     t, dark8 = cv2.threshold(g8, 0, 1, cv2.THRESH_BINARY_INV | cv2.THRESH_OTSU)
     dark = dark8.astype(bool)
-    if dark.mean() <= 0.5:
+    if dark.mean() <= 0.5 or not auto_invert:
         return dark, float(t), False
     return ~dark, float(t), True
 
@@ -214,6 +218,7 @@ def make_mask(
     min_region_mm2: float = _DEFAULTS.min_region_mm2,
     edge_sigma_px: float = _DEFAULTS.edge_sigma_px,
     edge_k: float = _DEFAULTS.edge_k,
+    auto_invert: bool = _DEFAULTS.auto_invert,
 ) -> tuple[InkMask, MaskStats]:
     """Ink mask of a grey raster on the mask grid.
 
@@ -224,6 +229,8 @@ def make_mask(
         min_region_mm2: drop 8-connected regions smaller than this, mm^2.
         edge_sigma_px: ``edges``: Gaussian blur sigma, px.
         edge_k: ``edges``: the cut is ``mean + edge_k * std`` of the gradient magnitude.
+        auto_invert: ``threshold``: draw the light side when the dark side covers more
+            than half the canvas (logged in one line); False: always the dark side.
 
     Returns:
         The mask with its centred panel grid, and its statistics.
@@ -240,7 +247,11 @@ def make_mask(
         raise TattotronixError(f"bad mask.res_mm={res_mm}: it must be positive")
     inverted = False
     if kind is MaskMethod.threshold:
-        raw, level, inverted = otsu_ink(grey)
+        raw, level, inverted = otsu_ink(grey, auto_invert)
+        if inverted:
+            log.info("mask: inverted: the dark side covers %.1f %% of the canvas, so the light "
+                     "side is drawn as ink (mask.auto_invert=false draws the dark side)",
+                     100.0 * (1.0 - raw.mean()))
     else:
         raw, level = edge_ink(grey, edge_sigma_px, edge_k)
 

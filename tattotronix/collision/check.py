@@ -16,6 +16,7 @@ needle is the one shape allowed into the panel).
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from typing import TypedDict
@@ -166,9 +167,12 @@ def check_trajectory(model: CollisionModel, t: Array, q: Array, *, margin_m: flo
     ta, qa = np.asarray(t, dtype=np.float64), np.asarray(q, dtype=np.float64)
     if qa.ndim != 2 or len(ta) != len(qa) or len(qa) == 0:
         raise TattotronixError(f"need (N,) times and (N, n) poses, got {ta.shape}, {qa.shape}")
-    if not (margin_m >= 0 and resolution_m > 0):
-        raise TattotronixError(f"margin ({margin_m}) must be >= 0 and resolution "
-                               f"({resolution_m}) > 0 m")
+    if not (math.isfinite(margin_m) and margin_m >= 0):
+        raise TattotronixError(f"collision.margin_mm must be a finite number >= 0 mm (got "
+                               f"{margin_m * 1e3:g})")
+    if not (math.isfinite(resolution_m) and resolution_m > 0):
+        raise TattotronixError(f"collision.resolution_mm must be a finite number > 0 mm (got "
+                               f"{resolution_m * 1e3:g})")
     clear = model.clearance(qa)
     t1 = time.perf_counter()
     n_pairs = clear.shape[1]

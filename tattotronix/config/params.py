@@ -10,20 +10,22 @@ README, "Configuration"). So ``params.yaml`` can silently fall behind an edit un
 * every stage run by DVC makes the same check before it reads ``params.yaml``.
 
 ``tattotronix-params`` (``python -m tattotronix.config.params``) rewrites ``params.yaml``;
-``--check`` only compares.
+``--check`` only compares. Both first refuse a ``conf/`` whose composition has a key out
+of its range (:func:`to_settings`).
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import re
 import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from tattotronix.config.schema import Config, Plain
+from tattotronix.config.schema import Config, Plain, out_of_range
 from tattotronix.errors import ConfigError
 
 __all__ = [
@@ -34,6 +36,7 @@ __all__ = [
     "diff",
     "load_params",
     "main",
+    "one_line",
     "params_text",
     "stale_message",
     "to_settings",
@@ -49,16 +52,50 @@ class StaleParamsError(ConfigError):
     """``params.yaml`` does not equal the composition of ``conf/``."""
 
 
-def _root_cause(exc: BaseException) -> str:
-    """The innermost message of a Hydra/OmegaConf error chain, which names the key."""
-    msgs = []
+#: lines of Hydra's and OmegaConf's messages that say nothing to the user
+_NOISE = ("full_key:", "reference_type=", "object_type=", "See https://", "Set the environment",
+          "To append to your config", "LexerNoViableAltException", "Error parsing override")
+#: a message template OmegaConf keeps in the chain beside its formatted copy
+_TEMPLATE = re.compile(r"\$[A-Z_]+")
+
+
+def one_line(exc: BaseException) -> str:
+    """A Hydra/OmegaConf error chain as one line: each distinct message once, without
+    OmegaConf's unformatted templates (``Value '$VALUE' ...``) or its detail lines, with the
+    key it names (``full_key``); a listing (Hydra's available options) is joined by commas."""
+    parts: list[str] = []
+    key = ""
     cur: BaseException | None = exc
-    while cur is not None:
-        text = str(cur).strip()
-        if text and text not in msgs:
-            msgs.append(text)
+    seen: set[int] = set()
+    while cur is not None and id(cur) not in seen:
+        seen.add(id(cur))
+        listing = False
+        for ln in (ln.strip() for ln in str(cur).splitlines()):
+            if ln.startswith("Config search path"):
+                break
+            if ln.startswith("full_key:"):
+                key = key or ln.split(":", 1)[1].strip()
+            if (not ln or ln == "None" or ln.startswith(_NOISE) or _TEMPLATE.search(ln)
+                    or set(ln) <= {"^", " "}):
+                continue
+            if listing:
+                parts[-1] += (" " if parts[-1].endswith(":") else ", ") + ln
+            elif not any(ln in p for p in parts):
+                parts.append(ln)
+                listing = ln.endswith(":")
         cur = cur.__cause__ or cur.__context__
-    return "\n".join(msgs)
+    text = "; ".join(p.rstrip(".") for p in parts) or type(exc).__name__
+    override = getattr(exc, "override", None)  # Hydra's OverrideParseException
+    if isinstance(override, str) and override not in text:
+        text = f"cannot parse the override {override!r}: {text}"
+    if key and key not in text:
+        text += f" (key {key})"
+    return text
+
+
+def _root_cause(exc: BaseException) -> str:
+    """The Hydra/OmegaConf error chain as one line that names the key (:func:`one_line`)."""
+    return one_line(exc)
 
 
 def compose(
@@ -92,8 +129,13 @@ def to_settings(cfg: DictConfig) -> Config:
     The stage runner calls this once per run; the library takes the result (or a
     section of it), never the ``DictConfig``.
 
+    Every numeric key is checked against the range its schema field declares
+    (:func:`tattotronix.config.schema.out_of_range`), so no stage starts work on a value
+    it cannot use.
+
     Raises:
-        ConfigError: a key is unknown, missing, or has a value of the wrong type.
+        ConfigError: a key is unknown, missing, or has a value of the wrong type or out of
+            its range (the message names the full key, the value and the range).
     """
     try:
         typed = cfg if OmegaConf.get_type(cfg) is Config else OmegaConf.merge(
@@ -102,6 +144,9 @@ def to_settings(cfg: DictConfig) -> Config:
     except Exception as exc:
         raise ConfigError(f"bad configuration: {_root_cause(exc)}") from None
     assert isinstance(obj, Config)
+    problems = out_of_range(obj)
+    if problems:
+        raise ConfigError("; ".join(problems))
     return obj
 
 
@@ -220,6 +265,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="project root (default: the current directory, as DVC runs it)")
     args = ap.parse_args(argv)
     try:
+        # a value out of its range stops here, before any stage (one line, naming the key)
+        compose_settings(conf_dir=args.root / "conf")
         if args.check:
             # Under `dvc exp run` DVC has just composed params.yaml, overrides included.
             if os.environ.get("DVC_EXP_NAME"):

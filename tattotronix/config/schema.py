@@ -19,15 +19,25 @@ classes, never copies them.
 Units: SI inside (m, kg, rad, s); millimetres only where the name says ``_mm``. A section
 converts its ``_mm`` keys once, in properties named in SI (``CollisionConfig.margin_m``,
 ``ToolpathConfig.clearance_m``, ...); the library uses those.
+
+Ranges: every numeric key declares its allowed values once, next to its default
+(:func:`bounded`: a :class:`Range` in the field's metadata; for a list, each item).
+:func:`out_of_range` checks a whole settings object against them, and
+:func:`tattotronix.config.params.to_settings` refuses a config that breaks one, naming the
+full key, the value and the range, before any stage does work. The bounds admit every value
+in ``conf/`` and the study sweeps; the lowest spacings (``toolpath.pitch_mm``,
+``toolpath.step_mm``, ``mask.res_mm``, ...) are the smallest the pipeline was measured to
+still run on the built-in emblem (README, "Configuration").
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections.abc import Callable
 from dataclasses import FrozenInstanceError, dataclass, field
 from enum import Enum
-from typing import Any, TypeAlias, TypeVar, dataclass_transform
+from typing import Any, TypeAlias, TypeVar, dataclass_transform, overload
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
@@ -59,6 +69,8 @@ __all__ = [
     "PenConfig",
     "Plain",
     "PlantConfig",
+    "RANGE_KEY",
+    "Range",
     "RobotConfig",
     "ServoConfig",
     "ServoMountConfig",
@@ -67,6 +79,9 @@ __all__ = [
     "Tool",
     "ToolpathConfig",
     "TrajectoryConfig",
+    "bounded",
+    "out_of_range",
+    "range_of",
     "register",
     "settings",
     "to_dict",
@@ -133,6 +148,130 @@ def _plain(value: object) -> Plain:
     return value
 
 
+#: a joint angle's bound, rad (a full turn either way)
+TURN = math.tau
+#: the bound of a position in the arm frame, m (the arm reaches 0.3 m)
+REACH_M = 10.0
+
+#: the smallest spacings the pipeline was measured to still run at on the built-in emblem
+#: (README, "Configuration": time and memory at each)
+MIN_RES_MM = 0.04
+MIN_PITCH_MM = 0.05
+MIN_STEP_MM = 0.005
+MIN_MAX_STEP_MM = 0.01
+MIN_COLLISION_RES_MM = 1e-6
+MIN_INK_RES_MM = 0.01
+MIN_DT_S = 1e-5
+
+#: the metadata key of a field's :class:`Range`
+RANGE_KEY = "range"
+
+
+@dataclass(frozen=True)
+class Range:
+    """The values a numeric setting allows (each item, for a list setting).
+
+    Attributes:
+        lo, hi: the bounds (always finite: nan and inf are never allowed).
+        lo_open, hi_open: the bound itself is excluded.
+        unit: the unit, for messages (``"mm"``, ``"rad/s"``).
+        why: what the key is or why the bound, for messages.
+    """
+
+    lo: float
+    hi: float
+    lo_open: bool = False
+    hi_open: bool = False
+    unit: str = ""
+    why: str = ""
+
+    def admits(self, value: float) -> bool:
+        """Whether ``value`` lies in the range (nan never does; ints compare exactly)."""
+        if isinstance(value, float) and math.isnan(value):
+            return False
+        above = value > self.lo if self.lo_open else value >= self.lo
+        below = value < self.hi if self.hi_open else value <= self.hi
+        return bool(above and below)
+
+    def describe(self, integer: bool = False) -> str:
+        """``">= 0.05 and <= 100 mm"`` (``"an integer >= 1 and <= 1000"``)."""
+        def num(x: float) -> str:
+            return str(int(x)) if integer and x.is_integer() else f"{x:g}"
+
+        text = (f"{'>' if self.lo_open else '>='} {num(self.lo)} and "
+                f"{'<' if self.hi_open else '<='} {num(self.hi)}")
+        return ("an integer " if integer else "") + text + (f" {self.unit}" if self.unit else "")
+
+    def problems(self, key: str, value: object) -> list[str]:
+        """What is wrong with ``value`` at ``key`` (a list: each item, ``key[i]``)."""
+        if value is None or isinstance(value, bool):
+            return []
+        if isinstance(value, list | tuple):
+            return [p for i, v in enumerate(value) for p in self.problems(f"{key}[{i}]", v)]
+        if not isinstance(value, int | float) or self.admits(value):
+            return []
+        shown = f"{value:g}" if isinstance(value, float) else str(value)
+        why = f": {self.why}" if self.why else ""
+        return [f"{key} must be {self.describe(isinstance(value, int))} (got {shown}){why}"]
+
+
+@overload
+def bounded(default: _T, *, lo: float, hi: float, lo_open: bool = ...,
+            hi_open: bool = ..., unit: str = ..., why: str = ...) -> _T: ...
+
+
+@overload
+def bounded(*, factory: Callable[[], _T], lo: float, hi: float, lo_open: bool = ...,
+            hi_open: bool = ..., unit: str = ..., why: str = ...) -> _T: ...
+
+
+def bounded(default: object = dataclasses.MISSING, *,
+            factory: Callable[[], object] | None = None, lo: float, hi: float,
+            lo_open: bool = False, hi_open: bool = False, unit: str = "",
+            why: str = "") -> object:
+    """A numeric field with its allowed :class:`Range` (each item, for a list field).
+
+    ``default`` (or ``factory`` for a list) is the field's default, as in
+    :func:`dataclasses.field`.
+    """
+    meta = {RANGE_KEY: Range(float(lo), float(hi), lo_open, hi_open, unit, why)}
+    if factory is not None:
+        return field(default_factory=factory, metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+def range_of(f: dataclasses.Field[object]) -> Range | None:
+    """The :class:`Range` a field was declared with (:func:`bounded`), or None."""
+    rng = f.metadata.get(RANGE_KEY)
+    return rng if isinstance(rng, Range) else None
+
+
+def out_of_range(obj: object, prefix: str = "") -> list[str]:
+    """Every numeric setting of the settings object ``obj`` outside its :class:`Range`,
+    each as ``"<full key> must be <range> (got <value>)..."``; nested sections, lists and
+    maps of sections are walked (``robot.joints[0].effort``, ``robot.printed.base_link.mass``).
+    """
+    found: list[str] = []
+    for f in dataclasses.fields(obj):  # type: ignore[arg-type]
+        key, value = f"{prefix}{f.name}", getattr(obj, f.name)
+        rng = range_of(f)
+        if rng is not None:
+            found += rng.problems(key, value)
+        else:
+            found += _nested_out_of_range(key, value)
+    return found
+
+
+def _nested_out_of_range(key: str, value: object) -> list[str]:
+    if dataclasses.is_dataclass(value) and not isinstance(value, type):
+        return out_of_range(value, f"{key}.")
+    if isinstance(value, list | tuple):
+        return [p for i, v in enumerate(value) for p in _nested_out_of_range(f"{key}[{i}]", v)]
+    if isinstance(value, dict):
+        return [p for k, v in value.items() for p in _nested_out_of_range(f"{key}.{k}", v)]
+    return []
+
+
 class MassModel(Enum):
     """Which inertial table the robot description uses."""
 
@@ -161,13 +300,14 @@ class JointConfig:
     name: str = MISSING
     parent: str = MISSING
     child: str = MISSING
-    xyz: list[float] = MISSING
-    rpy: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
-    axis: list[float] = MISSING
-    lower: float = MISSING  # rad
-    upper: float = MISSING  # rad
-    effort: float = 20.0  # N m
-    velocity: float = 1.5  # rad/s
+    xyz: list[float] = bounded(MISSING, lo=-REACH_M, hi=REACH_M, unit="m")
+    rpy: list[float] = bounded(factory=lambda: [0.0, 0.0, 0.0], lo=-TURN, hi=TURN,
+                               unit="rad")
+    axis: list[float] = bounded(MISSING, lo=-1, hi=1, why="a direction, e.g. [0, 0, 1]")
+    lower: float = bounded(MISSING, lo=-TURN, hi=TURN, unit="rad")
+    upper: float = bounded(MISSING, lo=-TURN, hi=TURN, unit="rad")
+    effort: float = bounded(20.0, lo=0, lo_open=True, hi=1e4, unit="N m")
+    velocity: float = bounded(1.5, lo=0, lo_open=True, hi=1e3, unit="rad/s")
 
 
 @settings
@@ -176,8 +316,9 @@ class FrameConfig:
 
     name: str = MISSING
     parent: str = MISSING
-    xyz: list[float] = MISSING
-    rpy: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    xyz: list[float] = bounded(MISSING, lo=-REACH_M, hi=REACH_M, unit="m")
+    rpy: list[float] = bounded(factory=lambda: [0.0, 0.0, 0.0], lo=-TURN, hi=TURN,
+                               unit="rad")
 
 
 @settings
@@ -187,9 +328,9 @@ class InertialConfig:
     ``inertia`` is ``[ixx, ixy, ixz, iyy, iyz, izz]``.
     """
 
-    mass: float = MISSING
-    com: list[float] = MISSING
-    inertia: list[float] = MISSING
+    mass: float = bounded(MISSING, lo=0, lo_open=True, hi=1e3, unit="kg")
+    com: list[float] = bounded(MISSING, lo=-REACH_M, hi=REACH_M, unit="m")
+    inertia: list[float] = bounded(MISSING, lo=-1e3, hi=1e3, unit="kg m^2")
 
 
 @settings
@@ -199,27 +340,30 @@ class BoxInertial:
     Its ``centre`` and ``size`` (m) also size the primitive geometry used without meshes.
     """
 
-    mass: float = MISSING
-    centre: list[float] = MISSING
-    size: list[float] = MISSING
+    mass: float = bounded(MISSING, lo=0, lo_open=True, hi=1e3, unit="kg")
+    centre: list[float] = bounded(MISSING, lo=-REACH_M, hi=REACH_M, unit="m")
+    size: list[float] = bounded(MISSING, lo=0, lo_open=True, hi=REACH_M, unit="m")
 
 
 @settings
 class PenConfig:
     """The placeholder tattoo pen on ``tool0``: a cylinder along tool0 +z (m, kg)."""
 
-    length: float = 0.045
-    radius: float = 0.003
-    mass: float = 0.020
-    barrel_length: float = 0.037  # visual barrel; the rest is the tip cone
+    length: float = bounded(0.045, lo=0, lo_open=True, hi=1, unit="m")
+    radius: float = bounded(0.003, lo=0, lo_open=True, hi=0.1, unit="m")
+    mass: float = bounded(0.020, lo=0, lo_open=True, hi=10, unit="kg")
+    # visual barrel; the rest is the tip cone
+    barrel_length: float = bounded(0.037, lo=0, lo_open=True, hi=1, unit="m")
 
 
 @settings
 class PanelConfig:
     """The work panel in the arm frame (m). Visual only: the needle may enter it."""
 
-    centre: list[float] = field(default_factory=lambda: [0.21, 0.0, 0.0025])
-    size: list[float] = field(default_factory=lambda: [0.20, 0.14, 0.005])
+    centre: list[float] = bounded(factory=lambda: [0.21, 0.0, 0.0025], lo=-REACH_M,
+                                  hi=REACH_M, unit="m")
+    size: list[float] = bounded(factory=lambda: [0.20, 0.14, 0.005], lo=0, lo_open=True,
+                                hi=REACH_M, unit="m")
 
     @property
     def size_mm(self) -> tuple[float, float]:
@@ -231,16 +375,17 @@ class PanelConfig:
 class BenchConfig:
     """The bench under the arm (m); its top is the arm frame's z = 0."""
 
-    size: list[float] = field(default_factory=lambda: [0.70, 0.50, 0.75])
+    size: list[float] = bounded(factory=lambda: [0.70, 0.50, 0.75], lo=0, lo_open=True,
+                                hi=REACH_M, unit="m")
 
 
 @settings
 class ServoConfig:
     """A catalogue hobby servo: mass (kg), body box (m), dead band (us)."""
 
-    mass: float = MISSING
-    size: list[float] = MISSING
-    deadband_us: float = MISSING
+    mass: float = bounded(MISSING, lo=0, lo_open=True, hi=10, unit="kg")
+    size: list[float] = bounded(MISSING, lo=0, lo_open=True, hi=1, unit="m")
+    deadband_us: float = bounded(MISSING, lo=0, hi=1000, unit="us")
 
 
 @settings
@@ -250,7 +395,7 @@ class ServoMountConfig:
     link: str = MISSING
     servo: str = MISSING
     at: str = MISSING  # a joint name, or "tool" for the tool servo on the tool axis
-    count: int = 1
+    count: int = bounded(1, lo=1, hi=16, why="servos at this mount")
 
 
 @settings
@@ -268,13 +413,16 @@ class RobotConfig:
     printed: dict[str, InertialConfig] = MISSING
     box: dict[str, BoxInertial] = MISSING
     cad_dir: str | None = None
-    mesh_scale: float = 0.01  # the CAD meshes are in centimetres
-    gravity: float = 9.80665  # m/s^2
+    mesh_scale: float = bounded(0.01, lo=0, lo_open=True, hi=1e3,
+                                why="mesh units to m; the CAD meshes are in cm")
+    gravity: float = bounded(9.80665, lo=0, hi=100, unit="m/s^2")
     bench: BenchConfig = field(default_factory=BenchConfig)
     panel: PanelConfig = field(default_factory=PanelConfig)
     # mass integration (the ``mass`` stage)
-    pla_density: float = 1240.0  # kg/m^3, solid PLA
-    printed_fraction: float = 0.35  # share of solid: 20 % infill, perimeters dominate
+    pla_density: float = bounded(1240.0, lo=0, lo_open=True, hi=1e5,
+                                 unit="kg/m^3")  # solid PLA
+    # share of solid: 20 % infill, perimeters dominate
+    printed_fraction: float = bounded(0.35, lo=0, lo_open=True, hi=1)
     servos: dict[str, ServoConfig] = MISSING
     servo_mounts: list[ServoMountConfig] = MISSING
 
@@ -285,36 +433,47 @@ class ArtworkConfig:
 
     source: str | None = None
     name: str | None = None  # defaults to the file's stem
-    max_pixels: int = 40_000_000  # refuse larger images (decompression bombs)
+    # refuse larger images (decompression bombs) and grids
+    max_pixels: int = bounded(40_000_000, lo=1, hi=1_000_000_000, unit="px")
+    # an SVG may refer to files in its own folder (<image href="photo.png">); false: an SVG
+    # must be self-contained (any reference to another file or a URL is refused)
+    svg_local_files: bool = False
 
 
 @settings
 class MaskConfig:
     """Artwork to ink mask."""
 
-    width_mm: float = 150.0
-    res_mm: float = 0.25
+    width_mm: float = bounded(150.0, lo=0, lo_open=True, hi=1000, unit="mm")
+    res_mm: float = bounded(0.25, lo=MIN_RES_MM, hi=10, unit="mm",
+                            why="the mask grid's pixel")
     method: MaskMethod = MaskMethod.threshold
-    min_region_mm2: float = 4.0
-    edge_sigma_px: float = 2.0
-    edge_k: float = 1.0
+    min_region_mm2: float = bounded(4.0, lo=0, hi=1e5, unit="mm^2")
+    edge_sigma_px: float = bounded(2.0, lo=0, hi=100, unit="px")
+    edge_k: float = bounded(1.0, lo=0, hi=100, why="edges: ink above mean + edge_k * std")
+    # threshold: when the dark side covers more than half the canvas, draw the light side
+    auto_invert: bool = True
 
 
 @settings
 class ToolpathConfig:
     """Mask to ordered needle path (mm in the panel plane)."""
 
-    pitch_mm: float = 1.2
-    step_mm: float = 0.15
-    clearance_mm: float = 8.0
-    plunge_mm: float = 1.5
-    approach_mm: float = 2.0
-    min_loop_px: int = 8
-    feed_mark_mm_s: float = 6.0
-    feed_travel_mm_s: float = 60.0
-    lift_s: float = 0.0  # extra fixed cost per needle entry in the ordering objective
+    pitch_mm: float = bounded(1.2, lo=MIN_PITCH_MM, hi=100, unit="mm",
+                              why="the hatch spacing")
+    step_mm: float = bounded(0.15, lo=MIN_STEP_MM, hi=100, unit="mm",
+                             why="the point spacing along a stroke")
+    clearance_mm: float = bounded(8.0, lo=0, hi=100, unit="mm")
+    plunge_mm: float = bounded(1.5, lo=0, hi=20, unit="mm")
+    approach_mm: float = bounded(2.0, lo=0, hi=120, unit="mm")
+    min_loop_px: int = bounded(8, lo=1, hi=1_000_000, unit="px")
+    feed_mark_mm_s: float = bounded(6.0, lo=0.01, hi=1000, unit="mm/s")
+    feed_travel_mm_s: float = bounded(60.0, lo=0.1, hi=10_000, unit="mm/s")
+    # extra fixed cost per needle entry in the ordering objective
+    lift_s: float = bounded(0.0, lo=0, hi=3600, unit="s")
     outlines_first: bool = True
-    panel_origin: list[float] = field(default_factory=lambda: [0.21, 0.0, 0.005])  # m
+    panel_origin: list[float] = bounded(factory=lambda: [0.21, 0.0, 0.005], lo=-1, hi=1,
+                                        unit="m")
 
     @property
     def pitch_m(self) -> float:
@@ -347,14 +506,20 @@ class IkConfig:
     """Whole-path IK: damped least squares on the 5x5 task Jacobian (docs/kinematics.md,
     "Inverse kinematics"; the original's: docs/original.md, "3 Inverse kinematics")."""
 
-    dls_lambda: float = 1e-3  # the damped-least-squares lambda, added to J J^T as is
-    max_iter: int = 200
-    tol: float = 1e-6  # |e|, mixed m / unitless
-    seed: list[float] = field(default_factory=lambda: [0.0, 0.6, -0.9, 0.0, -1.2])  # rad
-    needle_axis: list[float] = field(default_factory=lambda: [0.0, 0.0, -1.0])
-    anchor_spacing_m: float = 0.005  # batched solver: an anchor every 5 mm of path
-    verify_pos_tol_m: float = 2e-6
-    verify_axis_tol_rad: float = 2e-6
+    # the damped-least-squares lambda, added to J J^T as is
+    dls_lambda: float = bounded(1e-3, lo=0, lo_open=True, hi=1,
+                                why="the damped-least-squares lambda")
+    max_iter: int = bounded(200, lo=1, hi=100_000, why="iterations per IK solve")
+    tol: float = bounded(1e-6, lo=1e-12, hi=1e-3,
+                         why="the IK's convergence bound on |e| (m, unitless)")
+    seed: list[float] = bounded(factory=lambda: [0.0, 0.6, -0.9, 0.0, -1.2], lo=-TURN,
+                                hi=TURN, unit="rad")
+    needle_axis: list[float] = bounded(factory=lambda: [0.0, 0.0, -1.0], lo=-1, hi=1,
+                                       why="a direction, e.g. [0, 0, -1]")
+    # batched solver: an anchor every 5 mm of path
+    anchor_spacing_m: float = bounded(0.005, lo=1e-6, hi=1, unit="m")
+    verify_pos_tol_m: float = bounded(2e-6, lo=1e-12, hi=1e-2, unit="m")
+    verify_axis_tol_rad: float = bounded(2e-6, lo=1e-12, hi=0.1, unit="rad")
 
 
 @settings
@@ -365,14 +530,21 @@ class TrajectoryConfig:
     from the robot's joint table. ``speed`` (root key) rescales the whole motion.
     """
 
-    travel_feed_mm_s: float = 200.0  # cap on the tip speed of travel moves
-    accel_rad_s2: float = 10.0  # per-joint acceleration limit (see conf/trajectory)
-    jerk_rad_s3: float | None = None  # jerk limits are not implemented: must be null
-    max_step_mm: float = 0.5  # longer segments (travel, lifts) get points on the tip line
+    # cap on the tip speed of travel moves
+    travel_feed_mm_s: float = bounded(200.0, lo=0.1, hi=10_000, unit="mm/s")
+    # per-joint acceleration limit (see conf/trajectory)
+    accel_rad_s2: float = bounded(10.0, lo=0.01, hi=10_000, unit="rad/s^2")
+    # jerk limits are not implemented: must be null
+    jerk_rad_s3: float | None = bounded(None, lo=0, lo_open=True, hi=1e6, unit="rad/s^3")
+    # longer segments (travel, lifts) get points on the tip line
+    max_step_mm: float = bounded(0.5, lo=MIN_MAX_STEP_MM, hi=100, unit="mm",
+                                 why="the longest chord kept as is")
     travel: str = "planned"  # planned: joint-space moves between strokes; straight: tip lines
-    home: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0, 0.0, 0.0])  # rad
+    home: list[float] = bounded(factory=lambda: [0.0, 0.0, 0.0, 0.0, 0.0], lo=-TURN,
+                                hi=TURN, unit="rad")
     from_home: bool = True  # planned travel: start at home and return home
-    lifts_mm: list[float] = field(default_factory=lambda: [10.0, 20.0, 40.0, 80.0])
+    lifts_mm: list[float] = bounded(factory=lambda: [10.0, 20.0, 40.0, 80.0], lo=0,
+                                    hi=500, unit="mm")
 
     @property
     def travel_feed_m_s(self) -> float:
@@ -394,8 +566,11 @@ class TrajectoryConfig:
 class CollisionConfig:
     """Collision checking (``stages/collision.py``) and the planned travel's margin."""
 
-    margin_mm: float = 1.0  # least clearance a trajectory and a planned move must keep
-    resolution_mm: float = 0.1  # bisect the motion between samples down to this bound
+    # least clearance a trajectory and a planned move must keep
+    margin_mm: float = bounded(1.0, lo=0, hi=100, unit="mm")
+    # bisect the motion between samples down to this bound
+    resolution_mm: float = bounded(0.1, lo=MIN_COLLISION_RES_MM, hi=100, unit="mm",
+                                   why="the bisection bound between samples")
 
     @property
     def margin_m(self) -> float:
@@ -442,21 +617,27 @@ class ControllerConfig:
     """
 
     structure: Structure = Structure.pid_g_v
-    wn: float = 160.0  # rad/s, one bandwidth for every joint
-    rate_hz: float = 1000.0  # the loop runs at this rate, zero-order hold between ticks
-    torque_limit_nm: float | None = None  # null: each joint's effort limit (20 N m)
-    tune_q: list[float] | None = None  # rad; null: the reference pose mid-way through the run
+    wn: float = bounded(160.0, lo=0.1, hi=10_000, unit="rad/s")  # one for every joint
+    # the loop runs at this rate, zero-order hold between ticks
+    rate_hz: float = bounded(1000.0, lo=1, hi=10_000, unit="Hz")
+    # null: each joint's effort limit (20 N m)
+    torque_limit_nm: float | None = bounded(None, lo=0, lo_open=True, hi=1e4, unit="N m")
+    # rad; null: the reference pose mid-way through the run
+    tune_q: list[float] | None = bounded(None, lo=-TURN, hi=TURN, unit="rad")
 
 
 @settings
 class PlantConfig:
     """The simulated arm, whichever backend runs it."""
 
-    dt_s: float = 0.001  # integration step (semi-implicit Euler in every backend)
-    damping: float = 0.0  # viscous joint friction, N m s/rad (none unless configured)
+    # integration step (semi-implicit Euler in every backend)
+    dt_s: float = bounded(0.001, lo=MIN_DT_S, hi=0.1, unit="s")
+    # viscous joint friction, N m s/rad (none unless configured)
+    damping: float = bounded(0.0, lo=0, hi=1000, unit="N m s/rad")
     joint_limits: bool = False  # enforce the joint range (the model plant clamps)
     contacts: bool = False  # arm-bench contact (MuJoCo, PyBullet); the panel never resists
-    abort_error_rad: float = 1.0  # a joint this far from its reference: the run diverged
+    # a joint this far from its reference: the run diverged
+    abort_error_rad: float = bounded(1.0, lo=0, lo_open=True, hi=TURN, unit="rad")
 
 
 @settings
@@ -464,10 +645,12 @@ class DrawConfig:
     """Error bookkeeping and the ink image of a simulated drawing (docs/original.md, "5.5
     Tracking error"; docs/control.md, "Ink against the plan")."""
 
-    sample_s: float = 0.02  # tracking error sampled every 20 ms
-    settle_periods: float = 4.0  # "settled" excludes settle_periods / wn after each entry
-    needle_mm: float = 0.3  # ink line width
-    ink_res_mm: float = 0.05  # ink raster pixel
+    sample_s: float = bounded(0.02, lo=1e-5, hi=60, unit="s")  # tracking error sampling
+    # "settled" excludes settle_periods / wn after each entry
+    settle_periods: float = bounded(4.0, lo=0, hi=1000)
+    needle_mm: float = bounded(0.3, lo=0, lo_open=True, hi=10, unit="mm")  # ink line width
+    ink_res_mm: float = bounded(0.05, lo=MIN_INK_RES_MM, hi=10, unit="mm",
+                                why="the ink raster's pixel")
     progress: bool = True  # a progress bar with simulated time and real-time factor
 
     @property
@@ -489,10 +672,13 @@ class HardwareConfig:
     # Any: OmegaConf 2.3 types no nested mapping of mixed values (it has no Union types)
     servos: dict[str, Any] = MISSING  # Any: OmegaConf (above); hardware/servos.py checks it
     calibration_file: str | None = None
-    ramp_rad_s: float = 0.25  # the slow move to the start pose (and lifts), fastest joint
+    # the slow move to the start pose (and lifts), fastest joint
+    ramp_rad_s: float = bounded(0.25, lo=0, lo_open=True, hi=10, unit="rad/s")
     state_file: str = "arm/state.json"  # under paths.data: last commanded pose, resume point
-    save_every_s: float = 1.0  # the state file is refreshed this often while drawing
-    fail_after_writes: int | None = None  # dry-run fault injection: the bus fails after N
+    # the state file is refreshed this often while drawing
+    save_every_s: float = bounded(1.0, lo=0, lo_open=True, hi=3600, unit="s")
+    # dry-run fault injection: the bus fails after N
+    fail_after_writes: int | None = bounded(None, lo=0, hi=1_000_000_000)
 
 
 @settings
@@ -500,14 +686,16 @@ class KinematicsStudyConfig:
     """The kinematics study (docs/kinematics.md; docs/original.md, "3.4 Conditioning,
     reachability, placement"). Placements pair widths[i] with offsets[i]."""
 
-    reach_nx: int = 33
-    reach_ny: int = 23
-    placement_widths_mm: list[float] = field(
-        default_factory=lambda: [120.0, 150.0, 120.0, 100.0, 150.0, 120.0, 150.0, 150.0])
-    placement_offsets_mm: list[float] = field(
-        default_factory=lambda: [0.0, 0.0, 15.0, 30.0, 15.0, 30.0, 30.0, 45.0])
-    workspace_samples: int = 60_000
-    workspace_seed: int = 0
+    reach_nx: int = bounded(33, lo=2, hi=200)
+    reach_ny: int = bounded(23, lo=2, hi=200)
+    placement_widths_mm: list[float] = bounded(
+        factory=lambda: [120.0, 150.0, 120.0, 100.0, 150.0, 120.0, 150.0, 150.0], lo=0,
+        lo_open=True, hi=1000, unit="mm")
+    placement_offsets_mm: list[float] = bounded(
+        factory=lambda: [0.0, 0.0, 15.0, 30.0, 15.0, 30.0, 30.0, 45.0], lo=-1000, hi=1000,
+        unit="mm")
+    workspace_samples: int = bounded(60_000, lo=1, hi=1_000_000)
+    workspace_seed: int = bounded(0, lo=0, hi=2**32 - 1)
 
 
 @settings
@@ -515,7 +703,7 @@ class ControlCase:
     """One run of the control study: a controller structure at a bandwidth."""
 
     structure: Structure = MISSING
-    wn: float = MISSING
+    wn: float = bounded(MISSING, lo=0.1, hi=10_000, unit="rad/s")
 
 
 @settings
@@ -548,12 +736,18 @@ class ActuatorStudyConfig:
     """The actuator study (docs/actuators.md; docs/original.md, "6.6 The actuator study"):
     what hobby servos allow at the needle."""
 
-    every: int = 5  # every 5th marking point is a pose of the study
-    us_per_deg: float = 11.111  # the declared pulse-to-angle scale (2000 us over 180 deg)
-    arduino_step_us: float = 1.0  # the Arduino Servo library's pulse step
-    bus_step_deg: float = 0.087890625  # a 12-bit encoder: 360 / 4096 deg
-    play_deg: float = 1.0  # "one degree of play at every joint"
-    backlash_deg: float = 0.1  # "every 0.1 deg of backlash costs up to ..."
+    # every 5th marking point is a pose of the study
+    every: int = bounded(5, lo=1, hi=1_000_000)
+    # the declared pulse-to-angle scale (2000 us over 180 deg)
+    us_per_deg: float = bounded(11.111, lo=0, lo_open=True, hi=1000, unit="us/deg")
+    # the Arduino Servo library's pulse step
+    arduino_step_us: float = bounded(1.0, lo=0, lo_open=True, hi=1000, unit="us")
+    # a 12-bit encoder: 360 / 4096 deg
+    bus_step_deg: float = bounded(0.087890625, lo=0, lo_open=True, hi=360, unit="deg")
+    # "one degree of play at every joint"
+    play_deg: float = bounded(1.0, lo=0, hi=90, unit="deg")
+    # "every 0.1 deg of backlash costs up to ..."
+    backlash_deg: float = bounded(0.1, lo=0, hi=90, unit="deg")
     options: list[ActuatorOption] = MISSING
 
 
@@ -565,14 +759,21 @@ class StudyConfig:
     named cases (``control``); ``python stages/<study>.py -m key=a,b,c`` runs any other.
     """
 
-    window_s: float = 12.0  # the original's "busiest window" length
+    window_s: float = bounded(12.0, lo=0, lo_open=True, hi=1e5, unit="s")  # busiest window
     kinematics: KinematicsStudyConfig = field(default_factory=KinematicsStudyConfig)
     control: ControlStudyConfig = field(default_factory=ControlStudyConfig)
-    approach_mm: list[float] = field(default_factory=lambda: [0.0, 0.5, 1.0, 2.0, 4.0])
-    step_mm: list[float] = field(default_factory=lambda: [0.6, 0.3, 0.15])
-    rate_hz: list[int] = field(default_factory=lambda: [200, 500, 1000])
-    rate_wn: list[int] = field(default_factory=lambda: [40, 80, 160])
-    rate_plant_dt_s: float = 0.00025  # the rate study's plant step (4 kHz)
+    # the same ranges as toolpath.approach_mm, toolpath.step_mm, controller.rate_hz,
+    # controller.wn and plant.dt_s, whose values they sweep
+    approach_mm: list[float] = bounded(factory=lambda: [0.0, 0.5, 1.0, 2.0, 4.0], lo=0,
+                                       hi=120, unit="mm")
+    step_mm: list[float] = bounded(factory=lambda: [0.6, 0.3, 0.15], lo=MIN_STEP_MM,
+                                   hi=100, unit="mm")
+    rate_hz: list[int] = bounded(factory=lambda: [200, 500, 1000], lo=1, hi=10_000,
+                                 unit="Hz")
+    rate_wn: list[int] = bounded(factory=lambda: [40, 80, 160], lo=1, hi=10_000,
+                                 unit="rad/s")
+    # the rate study's plant step (4 kHz)
+    rate_plant_dt_s: float = bounded(0.00025, lo=MIN_DT_S, hi=0.1, unit="s")
     actuator: ActuatorStudyConfig = field(default_factory=ActuatorStudyConfig)
 
 
@@ -599,7 +800,8 @@ class Config:
     controller: ControllerConfig = field(default_factory=ControllerConfig)
     plant: PlantConfig = field(default_factory=PlantConfig)
     draw: DrawConfig = field(default_factory=DrawConfig)
-    speed: float = 1.0  # rescales the motion: 2 draws twice as fast (marking at 2x feed)
+    # rescales the motion: 2 draws twice as fast (marking at 2x feed)
+    speed: float = bounded(1.0, lo=0.01, hi=1000)
     backend: Backend = Backend.mujoco  # draw.py: the plant
     art: str | None = None  # draw.py: a stored (or built-in) drawing by name
     # draw.py: null (whole drawing), [start_s, length_s] or "busiest"
@@ -609,7 +811,8 @@ class Config:
     dry_run: bool = False  # backend=arm: a recording bus instead of the I2C device
     resume: bool = False  # backend=arm: continue a paused or failed drawing
     realtime: bool = True  # backend=arm dry run: stream at the frame rate (false: at once)
-    pose: list[float] | None = None  # collision.py: report this one pose (rad) as JSON
+    # collision.py: report this one pose (rad) as JSON
+    pose: list[float] | None = bounded(None, lo=-TURN, hi=TURN, unit="rad")
 
 
 SCHEMAS: dict[str, type] = {

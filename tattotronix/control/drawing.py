@@ -51,8 +51,8 @@ from tattotronix.plants import PlantSettings, make_plant
 from tattotronix.robot.description import RobotDescription, build_description
 from tattotronix.trajectory import JointPath, load_trajectory
 
-__all__ = ["ClosedLoop", "Drawing", "available_drawings", "draw_simulated", "resolve_drawing",
-           "run_closed_loop"]
+__all__ = ["MAX_TICKS", "ClosedLoop", "Drawing", "available_drawings", "check_tick_budget",
+           "draw_simulated", "resolve_drawing", "run_closed_loop"]
 
 log = logging.getLogger("tattotronix.draw")
 Array = NDArray[np.float64]
@@ -285,6 +285,28 @@ class ClosedLoop:
         })
 
 
+#: most controller ticks one run logs (~300 bytes each: measured angles, torques, the
+#: reference, the tip); the built-in emblem is 0.6 million at 1 kHz
+MAX_TICKS = 10_000_000
+_TICK_BYTES = 300
+
+
+def check_tick_budget(duration_s: float, rate_hz: float) -> None:
+    """Refuse a run of more than :data:`MAX_TICKS` controller ticks, before simulating.
+
+    Raises:
+        TattotronixError: over budget; the message gives the estimate and what to change.
+    """
+    ticks = duration_s * rate_hz
+    if ticks > MAX_TICKS:
+        raise TattotronixError(
+            f"the run is {duration_s:.4g} s at controller.rate_hz={rate_hz:g}: {ticks:.3g} "
+            f"controller ticks, over the budget of {MAX_TICKS:.3g} (~"
+            f"{ticks * _TICK_BYTES / 2**30:.1f} GiB of logs): run a window "
+            "(window=[start_s, length_s]), lower controller.rate_hz, or plan a faster "
+            "drawing (speed, toolpath.feed_mark_mm_s)")
+
+
 def run_closed_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Drawing, *,
                     window: object = None, plant_dt_s: float | None = None,
                     progress: bool = False, viewer: bool = False) -> ClosedLoop:
@@ -315,6 +337,7 @@ def run_closed_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Dr
     rate = float(ctl.rate_hz)
     if not (math.isfinite(rate) and rate > 0):
         raise TattotronixError(f"controller.rate_hz={rate}: give a positive rate in Hz")
+    check_tick_budget(end - start, rate)
     ref = reference_at_ticks(drawing.t, drawing.q, drawing.qd, 1.0 / rate, start, end)
     dyn = Dynamics(urdf, desc.gravity)
     tune_q = np.asarray(ctl.tune_q if ctl.tune_q is not None else ref.middle_pose(),

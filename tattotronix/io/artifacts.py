@@ -46,7 +46,6 @@ from __future__ import annotations
 
 import json
 import string
-import zipfile
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -57,7 +56,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.errors import StageInputMissing, TattotronixError
 from tattotronix.io.jsontypes import JsonDict, JsonValue
-from tattotronix.io.npz import save_npz
+from tattotronix.io.npz import READ_ERRORS, save_npz
 from tattotronix.io.provenance import code_version, plain_config, provenance_json
 
 __all__ = [
@@ -84,8 +83,6 @@ __all__ = [
 #: the key every artifact stores its provenance JSON under
 PROVENANCE_KEY = "provenance"
 
-#: what a failed read raises inside numpy / zipfile (truncated, not a zip, a bad member)
-_READ_ERRORS = (OSError, EOFError, ValueError, KeyError, zipfile.BadZipFile)
 
 #: dtype kinds each stored dtype may be read back as (old files, hand-made inputs)
 _NUMERIC = "biuf"
@@ -267,7 +264,7 @@ class ArtifactSpec:
             raise
         except FileNotFoundError:
             raise self.missing(file, where) from None
-        except _READ_ERRORS as exc:
+        except READ_ERRORS as exc:
             raise self.refuse(file, f"{type(exc).__name__}: {exc}", where) from None
         for key, arr in arrays.items():
             dtype = self.dtypes.get(key)

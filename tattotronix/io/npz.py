@@ -6,18 +6,30 @@ stage downstream of it, and a metric that records an input's hash (the collision
 ``trajectory_sha256``) moves with no change in the physics. :func:`save_npz` writes the
 same format (a zip of ``.npy`` members, deflated) with a fixed member time, so
 ``numpy.load`` reads it as before and equal arrays give equal files.
+
+:data:`READ_ERRORS` is what reading a damaged one can raise; every reader turns them into
+a refusal that names the file and the stage that writes it.
 """
 
 from __future__ import annotations
 
+import struct
 import zipfile
+import zlib
 from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = ["save_npz"]
+__all__ = ["READ_ERRORS", "save_npz"]
+
+#: what a failed read of a damaged npz raises inside numpy, zipfile and zlib: truncated,
+#: not a zip, a bad member, a corrupt deflate stream, flipped flag bits ("encrypted",
+#: "compressed patched data"), a header claiming an impossible shape
+READ_ERRORS: tuple[type[Exception], ...] = (
+    OSError, EOFError, ValueError, KeyError, IndexError, RuntimeError, NotImplementedError,
+    OverflowError, MemoryError, struct.error, zipfile.BadZipFile, zlib.error)
 
 #: the member time of every file (the earliest a zip can hold)
 _EPOCH = (1980, 1, 1, 0, 0, 0)

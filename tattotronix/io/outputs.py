@@ -23,7 +23,7 @@ class Outputs:
 
     Files go to temporary names next to their targets; only when the stage body returns
     are they renamed into place. A stage interrupted half-way leaves nothing that looks
-    finished (the temporaries are removed).
+    finished (the temporaries are removed, and the folders made for them when empty).
     """
 
     def __init__(self, data: str | Path, sweep_overrides: list[str] | None = None):
@@ -31,6 +31,7 @@ class Outputs:
         #: in a Hydra multirun, this job's overrides (``key=value``); None otherwise
         self.sweep_overrides = sweep_overrides
         self._pending: list[tuple[Path, Path]] = []
+        self._made: list[Path] = []  # folders made for the temporaries, outermost first
 
     def sweep_suffix(self, ignore: tuple[str, ...] = ()) -> str:
         """In a multirun, ``@k=v,k=v`` from this job's overrides (keys in ``ignore`` left
@@ -55,7 +56,9 @@ class Outputs:
 
     def _tmp(self, target: Path) -> Path:
         """Register a temporary next to ``target`` (same suffix, for writers that check it)."""
+        missing = [p for p in (target.parent, *target.parent.parents) if not p.exists()]
         target.parent.mkdir(parents=True, exist_ok=True)
+        self._made.extend(reversed(missing))
         tmp = target.with_name(f".{target.stem}.tmp{os.getpid()}{target.suffix}")
         self._pending.append((tmp, target))
         return tmp
@@ -90,6 +93,7 @@ class Outputs:
         for tmp, target in self._pending:
             tmp.replace(target)
         self._pending.clear()
+        self._made.clear()
 
     def abort(self) -> None:
         """Remove every staged temporary."""
@@ -99,6 +103,12 @@ class Outputs:
             else:
                 tmp.unlink(missing_ok=True)
         self._pending.clear()
+        for folder in reversed(self._made):  # innermost first; only the empty ones go
+            try:
+                folder.rmdir()
+            except OSError:
+                pass
+        self._made.clear()
 
     @contextmanager
     def transaction(self) -> Iterator[Outputs]:

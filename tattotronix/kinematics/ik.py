@@ -91,7 +91,12 @@ from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.kinematics.chain import Chain, Num, SoaState, Vec3
 from tattotronix.robot.description import RobotDescription
-from tattotronix.robot.loaders import STANDARD_GRAVITY, pinocchio_model
+from tattotronix.robot.loaders import (
+    STANDARD_GRAVITY,
+    load_pinocchio,
+    model_refused,
+    pinocchio_model,
+)
 
 __all__ = [
     "Conditioning",
@@ -522,6 +527,28 @@ def _settle(
     return rounds, solved
 
 
+def _check_settings(dls_lambda: float, max_iter: int, tol: float,
+                    anchor_spacing_m: float) -> None:
+    """Refuse solver settings that cannot work, naming their ``ik`` key: a lambda <= 0
+    (the damped normal equations may have no square root), no iteration at all, a
+    tolerance or anchor spacing that is not a positive number."""
+    checks = (
+        ("ik.dls_lambda", dls_lambda, "a finite number > 0 (the damping, e.g. 1e-3)"),
+        ("ik.max_iter", max_iter, "an integer >= 1 (iterations per solve, e.g. 200)"),
+        ("ik.tol", tol, "a finite number > 0 (the convergence bound, e.g. 1e-6)"),
+        ("ik.anchor_spacing_m", anchor_spacing_m, "a finite number > 0 m (e.g. 0.005)"),
+    )
+    for key, value, want in checks:
+        if isinstance(value, bool) or not isinstance(value, int | float | np.number):
+            ok = False
+        elif key == "ik.max_iter":
+            ok = isinstance(value, int | np.integer) and value >= 1
+        else:
+            ok = math.isfinite(value) and value > 0
+        if not ok:
+            raise TattotronixError(f"{key} must be {want} (got {value!r})")
+
+
 def solve_path(
     chain: Chain,
     targets_m: ArrayLike,
@@ -556,9 +583,11 @@ def solve_path(
         The solutions; ``result.raise_if_failed(uvz_mm)`` refuses a path with failures.
 
     Raises:
-        TattotronixError: targets not (N, 3) finite, a bad needle axis or seed.
+        TattotronixError: targets not (N, 3) finite, a bad needle axis or seed, or a
+            solver setting that cannot work (named as its ``ik`` key).
     """
     t0 = time.perf_counter()
+    _check_settings(dls_lambda, max_iter, tol, anchor_spacing_m)
     x = np.asarray(targets_m, dtype=float)
     if x.ndim != 2 or x.shape[1] != 3 or not np.all(np.isfinite(x)):
         raise TattotronixError(f"IK targets must be (N, 3) finite positions in m, got {x.shape}")
@@ -778,9 +807,13 @@ class PinocchioTip:
                        gravity: float = STANDARD_GRAVITY) -> PinocchioTip:
         """From URDF text (``tattotronix.robot.urdf.to_urdf``). ``gravity`` (m/s^2) only
         picks which shared model to use: the kinematics do not depend on it."""
-        model = pinocchio_model(urdf, gravity)
+        return cls._of_model(pinocchio_model(urdf, gravity), tip_frame)
+
+    @classmethod
+    def _of_model(cls, model: Any, tip_frame: str,  # Any: pinocchio.Model
+                  where: str = "the URDF") -> PinocchioTip:
         if not model.existFrame(tip_frame):
-            raise TattotronixError(f"the URDF has no frame {tip_frame!r} for the IK tip")
+            raise TattotronixError(f"{where} has no frame {tip_frame!r} for the IK tip")
         return cls(model=model, frame_id=int(model.getFrameId(tip_frame)), tip_frame=tip_frame,
                    lower=np.array(model.lowerPositionLimit, dtype=float),
                    upper=np.array(model.upperPositionLimit, dtype=float))
@@ -788,9 +821,16 @@ class PinocchioTip:
     @classmethod
     def from_urdf(cls, path: str | os.PathLike[str], tip_frame: str, *,
                   gravity: float = STANDARD_GRAVITY) -> PinocchioTip:
-        """From a URDF file (the robot stage's ``data/robot/tattotronix.urdf``)."""
-        return cls.from_urdf_text(Path(path).read_text(encoding="utf-8"), tip_frame,
-                                  gravity=gravity)
+        """From a URDF file (the robot stage's ``data/robot/tattotronix.urdf``).
+
+        Raises:
+            TattotronixError: the file is missing, not a URDF, or has no ``tip_frame``;
+                the message names it and the ``robot`` stage.
+        """
+        model = load_pinocchio(Path(path), gravity)
+        if not model.existFrame(tip_frame):
+            raise model_refused(Path(path), f"it has no frame {tip_frame!r} for the IK tip")
+        return cls._of_model(model, tip_frame)
 
     @classmethod
     def from_description(cls, desc: RobotDescription, tip: str | None = None) -> PinocchioTip:

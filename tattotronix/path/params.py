@@ -60,7 +60,7 @@ class ToolpathParams:
         }
         for key, (value, hint) in positive.items():
             if not (math.isfinite(value) and value > 0):
-                raise TattotronixError(f"{key} must be > 0 (got {value}): set {hint}")
+                raise TattotronixError(f"{key} must be > 0 and finite (got {value}): set {hint}")
         for key, value in {
             "toolpath.clearance_mm": self.clearance_mm,
             "toolpath.plunge_mm": self.plunge_mm,
@@ -69,7 +69,7 @@ class ToolpathParams:
             "mask.min_region_mm2": self.min_region_mm2,
         }.items():
             if not (math.isfinite(value) and value >= 0):
-                raise TattotronixError(f"{key} must be >= 0 (got {value})")
+                raise TattotronixError(f"{key} must be >= 0 and finite (got {value})")
         if self.approach_mm > self.clearance_mm + self.plunge_mm:
             raise TattotronixError(
                 f"toolpath.approach_mm ({self.approach_mm}) exceeds the whole plunge "

@@ -3,6 +3,12 @@
 The original's ordering is planned beside ours on the same strokes (same pitch, same
 resampling), with the original's lift rule: it stays down across any gap whose straight line
 is on ink, however long, where ours stays down only where that is also faster than a lift.
+
+Budget: a fine pitch or step multiplies the work. Before each costly step the work is
+estimated and refused over a stated budget, with the estimate in the message
+(:func:`check_fill_budget`, :func:`check_order_budget`, :func:`check_points_budget`): the
+fill's scanlines x mask columns before hatching, the strokes before ordering them (the
+search is quadratic in strokes), the path's points before resampling.
 """
 
 from __future__ import annotations
@@ -17,6 +23,7 @@ from numpy.typing import NDArray
 from tattotronix.art.grid import InkMask
 from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
+from tattotronix.path.fill import MIN_RUN_PX
 from tattotronix.path.order import MAX_PASSES, Order, OrderResult, optimise_order, original_order
 from tattotronix.path.panel import check_fits, to_arm
 from tattotronix.path.params import ToolpathParams
@@ -24,9 +31,94 @@ from tattotronix.path.path3d import Path3D, build_path
 from tattotronix.path.strokes import Drawing, build_drawing
 from tattotronix.path.timing import PathMetrics, measure, timestamps
 
-__all__ = ["Toolpath", "plan_toolpath"]
+__all__ = ["MAX_FILL_CELLS", "MAX_POINTS", "MAX_STROKES", "Toolpath", "check_fill_budget",
+           "check_order_budget", "check_points_budget", "plan_toolpath"]
 
 log = logging.getLogger("tattotronix.path")
+
+#: most fill scanlines x mask columns hatched at once (~12 bytes each in temporaries)
+MAX_FILL_CELLS = 20_000_000
+#: most strokes ordered: the search is quadratic in strokes (measured on the built-in
+#: emblem: 10 379 strokes at toolpath.pitch_mm=0.05 took 108 s and 0.8 GB)
+MAX_STROKES = 12_000
+#: most points on the path: the trajectory stage holds ~2.2 kB a point (measured on the
+#: built-in emblem: 3.2 million points at toolpath.step_mm=0.001 took 7.2 GB)
+MAX_POINTS = 1_000_000
+#: bytes of temporaries per fill cell, and per ordered stroke squared (for messages)
+_CELL_BYTES = 12
+_STROKE2_BYTES = 8
+
+
+def _gib(n_bytes: float) -> str:
+    gib = n_bytes / 2**30
+    return f"{gib:.2f} GiB" if gib < 10 else f"{gib:,.0f} GiB"
+
+
+def check_fill_budget(mask: InkMask, params: ToolpathParams) -> None:
+    """Refuse a pitch whose fill would hatch more than :data:`MAX_FILL_CELLS` cells, or
+    make more than :data:`MAX_STROKES` strokes, before hatching anything.
+
+    The strokes are counted from the mask: each scanline reads its nearest mask row, whose
+    runs of at least ``MIN_RUN_PX`` ink pixels each become a fill stroke.
+
+    Raises:
+        TattotronixError: over budget; the message gives the estimate and what to raise.
+    """
+    h, w = mask.ink.shape
+    res, pitch = mask.res_mm, params.pitch_mm
+    span = (h - 1) * res / pitch
+    lines = math.floor(span + 1e-9) + 1 if math.isfinite(span) else math.inf
+    cells = lines * w
+    if cells > MAX_FILL_CELLS:
+        raise TattotronixError(
+            f"toolpath.pitch_mm={pitch:g} on this {h * res:.1f} mm tall mask needs {lines:.4g} "
+            f"fill scanlines x {w} columns = {cells:.3g} cells (~{_gib(cells * _CELL_BYTES)}), "
+            f"over the toolpath's budget of {MAX_FILL_CELLS:.3g}: raise toolpath.pitch_mm "
+            "(or mask.res_mm)")
+    padded = np.pad(mask.ink, ((0, 0), (1, 1))).astype(np.int8)
+    step = np.diff(padded, axis=1)
+    start_r, start_c = np.nonzero(step == 1)
+    _, end_c = np.nonzero(step == -1)
+    runs = np.bincount(start_r[(end_c - start_c) >= MIN_RUN_PX], minlength=h)
+    # scanline k reads row floor(k q + 1/2), q = pitch / res: row r is read by the k in
+    # [(r - 1/2) / q, (r + 1/2) / q)
+    q = pitch / res
+    r = np.arange(h, dtype=np.float64)
+    reads = (np.clip(np.ceil((r + 0.5) / q), 0, lines)
+             - np.clip(np.ceil((r - 0.5) / q), 0, lines))
+    strokes = int((reads * runs).sum())
+    check_order_budget(strokes, params)
+
+
+def check_order_budget(strokes: int, params: ToolpathParams) -> None:
+    """Refuse ordering more than :data:`MAX_STROKES` strokes.
+
+    Raises:
+        TattotronixError: over budget; the message gives the count and what to raise.
+    """
+    if strokes > MAX_STROKES:
+        raise TattotronixError(
+            f"toolpath.pitch_mm={params.pitch_mm:g} makes about {strokes} strokes, over the "
+            f"toolpath's budget of {MAX_STROKES} (ordering them is quadratic: "
+            f"~{_gib(strokes**2 * _STROKE2_BYTES)}): raise toolpath.pitch_mm, or draw a "
+            "smaller or simpler artwork")
+
+
+def check_points_budget(drawing: Drawing, params: ToolpathParams) -> None:
+    """Refuse resampling the strokes into more than :data:`MAX_POINTS` points.
+
+    Raises:
+        TattotronixError: over budget; the message gives the count and what to raise.
+    """
+    lengths = np.array([float(np.linalg.norm(np.diff(s.path_mm, axis=0), axis=1).sum())
+                        for s in drawing.strokes])
+    points = int(np.floor(lengths / params.step_mm).sum()) + 2 * len(lengths)
+    if points > MAX_POINTS:
+        raise TattotronixError(
+            f"toolpath.step_mm={params.step_mm:g} makes about {points} points along "
+            f"{lengths.sum():.0f} mm of strokes, over the toolpath's budget of {MAX_POINTS} "
+            f"(the trajectory stage holds ~2.2 kB a point: ~{_gib(points * 2200)}): raise "
+            "toolpath.step_mm")
 
 
 @dataclass(frozen=True)
@@ -102,15 +194,19 @@ def plan_toolpath(mask: InkMask, params: ToolpathParams, max_passes: int = MAX_P
         The toolpath, with the original ordering's figures beside ours.
 
     Raises:
-        TattotronixError: the drawing does not fit the panel, or has no ink region to draw.
+        TattotronixError: the drawing does not fit the panel, has no ink region to draw,
+            or would take more work than the budget (:func:`check_fill_budget`, ...).
     """
     check_fits(mask, params)
+    check_fill_budget(mask, params)
     drawing = build_drawing(mask, params)
     if not drawing.strokes:
         raise TattotronixError(
             f"the mask has no ink region of at least {params.min_region_mm2} mm^2 "
             "(mask.min_region_mm2): nothing to draw; check the artwork or the mask method"
         )
+    check_order_budget(len(drawing.strokes), params)
+    check_points_budget(drawing, params)
     result = optimise_order(drawing, mask, params, max_passes=max_passes)
     path = build_path(result.order.points(drawing, params.step_mm), mask, params)
     baseline = build_path(

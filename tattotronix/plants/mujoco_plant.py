@@ -9,6 +9,7 @@ from pathlib import Path
 from numpy.typing import ArrayLike
 
 from tattotronix.plants.base import Array, Plant, PlantSettings, has_display
+from tattotronix.robot.loaders import load_mujoco
 
 __all__ = ["MujocoPlant"]
 
@@ -27,7 +28,7 @@ class MujocoPlant(Plant):
         import mujoco
 
         self._mj = mujoco
-        m = mujoco.MjModel.from_xml_path(str(mjcf))
+        m = load_mujoco(mjcf)  # a missing or corrupt file: named, with the stage to re-run
         m.opt.timestep = settings.dt_s
         m.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
         m.opt.gravity[:] = (0.0, 0.0, -settings.gravity)

@@ -11,6 +11,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from tattotronix.plants.base import Array, Plant, PlantSettings, has_display
+from tattotronix.robot.loaders import load_pybullet
 
 __all__ = ["PybulletPlant"]
 
@@ -40,8 +41,7 @@ class PybulletPlant(Plant):
         p.setGravity(0, 0, -settings.gravity, physicsClientId=cid)
         p.setPhysicsEngineParameter(fixedTimeStep=settings.dt_s, numSubSteps=0,
                                     physicsClientId=cid)
-        self.body = p.loadURDF(str(urdf), useFixedBase=True,
-                               flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=cid)
+        self.body = load_pybullet(p, urdf, cid)  # a corrupt file: named, with its stage
         idx, names, tip = [], [], -1
         for i in range(p.getNumJoints(self.body, physicsClientId=cid)):
             info = p.getJointInfo(self.body, i, physicsClientId=cid)

@@ -10,21 +10,37 @@ by every user (:class:`PinocchioArm`, ``PinocchioTip`` in tattotronix/kinematics
 ``Dynamics`` in tattotronix/control/dynamics.py, ``ModelPlant`` in
 tattotronix/plants/model.py and ``CollisionModel`` in tattotronix/collision/model.py).
 The shared ``pinocchio.Model`` is read-only; each user makes its own ``pinocchio.Data``.
+
+The model files are the ``robot`` stage's outputs (``data/robot/<name>.urdf`` and
+``.xml``): every reader here refuses a missing, truncated or foreign file with a
+:class:`~tattotronix.errors.TattotronixError` that names the file and the stage to re-run
+(:func:`read_model`, :func:`model_refused`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
+import os
+import sys
+import tempfile
 import threading
 from collections import OrderedDict
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any, Protocol
 
 import numpy as np
 from numpy.typing import NDArray
 
+from tattotronix.errors import StageInputMissing, TattotronixError
+
 __all__ = ["STANDARD_GRAVITY", "ArmModel", "MujocoArm", "PinocchioArm", "PybulletArm",
-           "load_pinocchio", "pinocchio_model"]
+           "load_mujoco", "load_pinocchio", "load_pybullet", "model_refused", "pinocchio_model",
+           "read_model"]
+
+#: the stage that writes the model files
+MODEL_STAGE = "robot"
 
 #: m/s^2: the description's default gravity (``robot.gravity``), the one the
 #: kinematics-only users of :func:`pinocchio_model` ask for when they are not told one
@@ -84,10 +100,81 @@ def pinocchio_model(urdf_text: str, gravity: float = STANDARD_GRAVITY
         return model
 
 
+def model_refused(path: str | Path, why: str) -> TattotronixError:
+    """The error for a model file (URDF, MJCF) that cannot be used: what is wrong, and
+    which stage writes it."""
+    return TattotronixError(f"cannot read {path} ({' '.join(why.split())}): re-run the "
+                            f"'{MODEL_STAGE}' stage (python stages/{MODEL_STAGE}.py)")
+
+
+def read_model(path: str | Path) -> str:
+    """The text of a model file the ``robot`` stage wrote.
+
+    Raises:
+        TattotronixError: the file is missing (run the ``robot`` stage) or unreadable.
+    """
+    try:
+        return Path(path).read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise StageInputMissing(Path(path), MODEL_STAGE) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise model_refused(path, f"{type(exc).__name__}: {exc}") from None
+
+
+@contextlib.contextmanager
+def _c_stderr() -> Iterator[list[str]]:
+    """Hold back what C++ code writes straight to file descriptor 2 (urdfdom prints its
+    parse errors there) and hand it over in the yielded list; the caller says it once."""
+    said: list[str] = []
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile(mode="w+b") as held:
+        os.dup2(held.fileno(), 2)
+        try:
+            yield said
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+            held.seek(0)
+            said.append(held.read().decode("utf-8", "replace"))
+
+
 def load_pinocchio(urdf: Path, gravity: float) -> Any:  # Any: pin.Model (no stubs)
     """The shared, read-only Pinocchio model of the URDF file (its content, see
-    :func:`pinocchio_model`), fixed base, with the description's gravity."""
-    return pinocchio_model(Path(urdf).read_text(encoding="utf-8"), gravity)
+    :func:`pinocchio_model`), fixed base, with the description's gravity.
+
+    Raises:
+        TattotronixError: the file is missing, or is not a URDF Pinocchio can build (the
+            message names it and the ``robot`` stage).
+    """
+    text = read_model(urdf)
+    try:
+        with _c_stderr() as said:
+            model = pinocchio_model(text, gravity)
+    except Exception as exc:  # pinocchio's parser raises ValueError, RuntimeError, ...
+        detail = " ".join("".join(said).split()).split(" at line ")[0]
+        detail = detail.removeprefix("Error: ")[:160]
+        raise model_refused(urdf, f"not a URDF Pinocchio can read: {exc}"
+                            + (f" {detail}" if detail else "")) from None
+    if said and said[0]:
+        sys.stderr.write(said[0])  # warnings of a model that loaded: as they were
+    return model
+
+
+def load_mujoco(mjcf: Path) -> Any:  # Any: mujoco.MjModel
+    """The MuJoCo model of the MJCF file.
+
+    Raises:
+        TattotronixError: the file is missing, or is not an MJCF MuJoCo can compile (the
+            message names it and the ``robot`` stage).
+    """
+    import mujoco
+
+    read_model(mjcf)  # missing or unreadable: named as such
+    try:
+        return mujoco.MjModel.from_xml_path(str(mjcf))
+    except Exception as exc:  # mujoco raises ValueError for bad XML, and others
+        raise model_refused(mjcf, f"not an MJCF MuJoCo can read: {exc}") from None
 
 
 class PinocchioArm:
@@ -129,7 +216,7 @@ class MujocoArm:
         import mujoco
 
         self._mj = mujoco
-        self.model = mujoco.MjModel.from_xml_path(str(mjcf))
+        self.model = load_mujoco(mjcf)
         self.data = mujoco.MjData(self.model)
         m = self.model
         self.joint_names = tuple(
@@ -171,8 +258,7 @@ class PybulletArm:
         self._p = p
         self.client = p.connect(p.DIRECT)
         p.setGravity(0, 0, -gravity, physicsClientId=self.client)
-        self.body = p.loadURDF(str(urdf), useFixedBase=True,
-                               flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=self.client)
+        self.body = load_pybullet(p, urdf, self.client)
         self._links: dict[str, int] = {
             p.getBodyInfo(self.body, physicsClientId=self.client)[0].decode(): -1
         }
@@ -221,3 +307,19 @@ class PybulletArm:
         tau = self._p.calculateInverseDynamics(self.body, [float(v) for v in q], zero, zero,
                                                physicsClientId=self.client)
         return np.asarray(tau, dtype=float)
+
+
+def load_pybullet(p: Any, urdf: Path, client: int) -> int:  # Any: the pybullet module
+    """Load the URDF file into PyBullet's ``client`` (fixed base, the file's inertias);
+    its body id.
+
+    Raises:
+        TattotronixError: the file is missing, or PyBullet cannot load it (the message names
+            it and the ``robot`` stage).
+    """
+    read_model(urdf)  # missing or unreadable: named as such
+    try:
+        return int(p.loadURDF(str(urdf), useFixedBase=True,
+                              flags=p.URDF_USE_INERTIA_FROM_FILE, physicsClientId=client))
+    except p.error as exc:
+        raise model_refused(urdf, f"not a URDF PyBullet can read: {exc}") from None

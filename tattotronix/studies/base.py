@@ -61,7 +61,7 @@ from tattotronix.art.artwork import artwork_name
 from tattotronix.config.schema import Config, StudyConfig
 from tattotronix.control.drawing import ClosedLoop, Drawing, resolve_drawing, run_closed_loop
 from tattotronix.control.tracking import entry_times
-from tattotronix.errors import ConfigError
+from tattotronix.errors import ConfigError, TattotronixError
 from tattotronix.io.artifacts import StudySeriesRecord, make_provenance
 from tattotronix.io.jsontypes import JsonDict, JsonValue
 from tattotronix.io.outputs import Outputs
@@ -96,16 +96,24 @@ class StudyCase(Mapping[str, JsonValue]):
     metrics: Mapping[str, JsonValue]
 
     @classmethod
-    def load(cls, path: Path) -> StudyCase:
-        """Read a case file.
+    def load(cls, path: Path, study: str | None = None) -> StudyCase:
+        """Read a case file (``metrics/<study>/<name>/<case>.json``).
 
         Raises:
-            ValueError: the file does not hold a JSON object.
+            TattotronixError: the file is unreadable, not JSON, or does not hold a JSON
+                object; the message names it and the stage to re-run (``study``, by
+                default the name of the file's study folder).
         """
-        obj = json.loads(path.read_text())
+        stage = study or path.parent.parent.name
+        try:
+            obj = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError) as exc:
+            raise TattotronixError(f"cannot read {path} ({type(exc).__name__}: {exc}): "
+                                   f"re-run the '{stage}' stage") from None
         if not isinstance(obj, dict):
-            raise ValueError(f"{path}: a study case file holds a JSON object, not "
-                             f"{type(obj).__name__}")
+            raise TattotronixError(f"cannot read {path}: a study case file holds a JSON "
+                                   f"object, not {type(obj).__name__}: re-run the '{stage}' "
+                                   "stage")
         return cls(obj)
 
     def __getitem__(self, key: str) -> JsonValue:
@@ -270,7 +278,7 @@ class ClosedLoopStudy(ABC):
 def load_cases(data: Path, study: str, name: str) -> dict[str, StudyCase]:
     """Every stored case of a study on one artwork: case name -> the case."""
     folder = data / "metrics" / study / name
-    return {p.stem: StudyCase.load(p) for p in sorted(folder.glob("*.json"))}
+    return {p.stem: StudyCase.load(p, study) for p in sorted(folder.glob("*.json"))}
 
 
 # --- config values -----------------------------------------------------------------------
