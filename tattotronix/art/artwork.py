@@ -329,6 +329,16 @@ def _svg_length(value: str | None) -> float | None:
     return v if v > 0 and math.isfinite(v) else None
 
 
+def _parse_svg(text: str, label: str) -> ET.Element:
+    """The SVG's XML root; a parse error is refused naming ``label``."""
+    try:
+        return ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise TattotronixError(
+            f"{label} does not parse as SVG: {_one_line(exc)}; fix or re-export it"
+        ) from None
+
+
 def svg_intrinsic_size(text: str, label: str = "SVG") -> tuple[float, float]:
     """(width, height) in CSS px that an SVG declares, as resvg sizes it.
 
@@ -338,12 +348,7 @@ def svg_intrinsic_size(text: str, label: str = "SVG") -> tuple[float, float]:
     Raises:
         TattotronixError: the text is not well-formed XML, or its root is not ``<svg>``.
     """
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as exc:
-        raise TattotronixError(
-            f"{label} does not parse as SVG: {_one_line(exc)}; fix or re-export it"
-        ) from None
+    root = _parse_svg(text, label)
     if root.tag.rsplit("}", 1)[-1] != "svg":
         raise TattotronixError(
             f"{label} is not an SVG (its root element is <{root.tag.rsplit('}', 1)[-1]}>)"
@@ -416,12 +421,7 @@ def svg_external_refs(text: str, label: str = "SVG") -> list[tuple[str, str]]:
     Raises:
         TattotronixError: the text is not well-formed XML.
     """
-    try:
-        root = ET.fromstring(text)
-    except ET.ParseError as exc:
-        raise TattotronixError(
-            f"{label} does not parse as SVG: {_one_line(exc)}; fix or re-export it"
-        ) from None
+    root = _parse_svg(text, label)
 
     def css(where: str, value: str) -> list[tuple[str, str]]:
         refs = (m.group(2) if m.group(2) is not None else m.group(4)

@@ -12,6 +12,7 @@ Cases: ``study.control.cases`` (name -> structure and wn); a case sweeps
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from tattotronix.config.schema import Config, StudyConfig
 from tattotronix.io.jsontypes import JsonDict
@@ -26,6 +27,9 @@ from tattotronix.studies.base import (
     setting,
     window_value,
 )
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 __all__ = ["STUDY", "ControlStudy"]
 
@@ -42,6 +46,17 @@ def _worst(c: StudyCase) -> float:
 
 def _structure(c: StudyCase) -> str:
     return c.text("settings", "controller.structure")
+
+
+def _log_log_wn(ax: Axes, ylabel: str, title: str) -> None:
+    """A log-log panel against the bandwidth, with its legend and grid."""
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("wn, rad/s")
+    ax.set_ylabel(ylabel)
+    ax.set_title(title)
+    ax.legend(fontsize=7)
+    ax.grid(True, which="both", alpha=0.3)
 
 
 class ControlStudy(ClosedLoopStudy):
@@ -96,13 +111,7 @@ class ControlStudy(ClosedLoopStudy):
         ax.axhline(20, color="0.5", lw=0.8, ls="-.")
         ax.text(wns[0] if wns else 10, 20, " 20 um goal", fontsize=7, va="bottom",
                 color="0.4")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("wn, rad/s")
-        ax.set_ylabel("tip error, um")
-        ax.set_title("pid_g across the bandwidth")
-        ax.legend(fontsize=7)
-        ax.grid(True, which="both", alpha=0.3)
+        _log_log_wn(ax, "tip error, um", "pid_g across the bandwidth")
 
         ax = axes[2]
         for win, wlabel, ls in WINDOWS:
@@ -116,13 +125,7 @@ class ControlStudy(ClosedLoopStudy):
                 ax.annotate(f"{verdict} ", (w, window_value(c, "whole", "peak_torque_nm")),
                             fontsize=7, color=VERDICT_COLOUR.get(verdict, "k"), ha="right",
                             va="center")
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("wn, rad/s")
-        ax.set_ylabel("N m  /  mm")
-        ax.set_title("pid_g: peak torque and travel error")
-        ax.legend(fontsize=7)
-        ax.grid(True, which="both", alpha=0.3)
+        _log_log_wn(ax, "N m  /  mm", "pid_g: peak torque and travel error")
         finish_figure(fig, path, "Control", title, "the original's §5.6; MuJoCo, 1 kHz loop")
 
     def summary(self, cases: Cases) -> JsonDict:
