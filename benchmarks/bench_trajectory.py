@@ -4,8 +4,10 @@ On the built-in artwork's IK path when the ``ik`` stage has made it (``data/ik/e
 and on the 16 000-point logo-like synthetic path (IK solved here, not timed). The timed
 call is the whole plan: densify (IK on inserted travel points), path derivatives, the
 speed check and the forward/backward time law. ``cycle_over_marking`` is the planned
-duration over the marking-only time (marked length / feed); the goal is 1.10, the
-original needed 1.31.
+duration over the marking-only time (marked length / feed); the original needed 1.31.
+The peak jerk (sampled: the change of acceleration between points over their time) and
+the peak tip acceleration while marking are held against their limits
+(``trajectory.jerk_rad_s3``, ``trajectory.tip_accel_mm_s2``; docs/timelaw.md).
 """
 
 from __future__ import annotations
@@ -45,7 +47,13 @@ def _rows(label: str, path: JointPath, chain: Chain, limits: JointLimits,
         (f"cycle_over_marking [{label}]", m["cycle_over_marking"], "x",
          f"{m['duration_s']:.1f} s for {m['marking_only_s']:.1f} s of marking; approach "
          f"{m['approach_s']:.1f} s, travel {m['travel_s']:.1f} s, {m['entries']} entries; "
-         f"goal 1.10, original 1.31"),
+         f"original 1.31"),
+        (f"peak jerk [{label}]", m["peak_jerk_rad_s3_max"], "rad/s^3",
+         f"limit {m['jerk_limit_rad_s3']}; filter window up to "
+         f"{m['jerk_window_s_max'] * 1000:.0f} ms, {m['timelaw_repairs']} repair rounds"),
+        (f"peak tip acceleration marking [{label}]", m["peak_tip_accel_marking_mm_s2"],
+         "mm/s^2", f"limit {m['tip_accel_limit_mm_s2']}; marking below the feed "
+         f"{m['marking_below_feed_pct']:.1f} % of its length"),
         (f"fastest speed [{label}]", m["fastest_speed"] or float("nan"), "x",
          f"limited by {m['fastest_speed_joint']} {m['fastest_speed_limited_by']}"),
         (f"planned travel saving [{label}]", m["travel_saved_s"], "s",

@@ -67,7 +67,7 @@ def travel_planner(cfg: Config, desc: RobotDescription, chain: Chain,
         resolution_m=cfg.collision.resolution_m,
         clearance_z_m=panel_top + cfg.toolpath.clearance_m,
         lifts_m=cfg.trajectory.lifts_m, max_step_m=cfg.trajectory.max_step_m,
-        ik=ik_settings(cfg.ik))
+        ik=ik_settings(cfg.ik), reach_m=cfg.trajectory.blend_reach_m)
 
 
 def trajectory_from_path(cfg: Config, path: JointPath, desc: RobotDescription) -> Trajectory:

@@ -28,7 +28,7 @@ SMALL = ["mask.width_mm=24", "mask.min_region_mm2=0.5"]
 #: the stage script of each study (the control study's is not control.py, which would
 #: shadow python-control's ``control`` package)
 SCRIPT = {"control": "control_study", "approach": "approach", "resample": "resample",
-          "rate": "rate"}
+          "rate": "rate", "timelaw": "timelaw"}
 
 
 def _stage(study: str, data: Path, *overrides: str, multirun: bool = False

@@ -70,9 +70,12 @@ def chain(desc: RobotDescription) -> Chain:
 
 @pytest.fixture(scope="module")
 def params() -> TrajectoryParams:
-    """The config's settings with straight travel: these tests are about the time law
-    along the whole path (planned travel is tested in test_travel.py)."""
-    return replace(TrajectoryParams.from_config(compose_settings()), travel="straight")
+    """The config's settings with straight travel and the acceleration-limited law (no
+    jerk or tip limit): these tests are about the discrete time-optimal law along the
+    whole path (planned travel and the default limits are tested in test_travel.py, the
+    jerk and tip limits in test_timelaw_props.py)."""
+    return replace(TrajectoryParams.from_config(compose_settings()), travel="straight",
+                   jerk_rad_s3=None, tip_accel_m_s2=None)
 
 
 def _limits(desc: RobotDescription, params: TrajectoryParams) -> JointLimits:
@@ -322,7 +325,8 @@ def test_velocity_refusal_reads_like_the_original(line: JointPath, chain: Chain,
     ({"speed": -1.0}, "speed=-1"),
     ({"accel_rad_s2": 0.0}, "trajectory.accel_rad_s2=0"),
     ({"travel_feed_m_s": float("nan")}, "trajectory.travel_feed_mm_s=nan"),
-    ({"jerk_rad_s3": 100.0}, "jerk_rad_s3=100: jerk-limited profiles are not implemented"),
+    ({"jerk_rad_s3": -1.0}, "jerk limit must be a positive number or null"),
+    ({"tip_accel_m_s2": 0.0}, "tip acceleration limit must be a positive number or null"),
 ])
 def test_bad_settings_are_refused(line: JointPath, chain: Chain, desc: RobotDescription,
                                   params: TrajectoryParams, change: dict[str, float],

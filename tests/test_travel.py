@@ -277,7 +277,11 @@ def test_planned_moves_stay_above_the_clearance_height(planned: Trajectory) -> N
         assert planned.t[idx[-1]] == pytest.approx(m.start_s + m.duration_s, abs=1e-12)
         assert np.all(planned.kind[idx] == 0), m.kind
         assert planned.tcp[idx, 2].min() >= clear - CLEAR_TOL, m.kind
-        assert np.all(planned.qd[idx[[0, -1]]] == 0.0), m.kind  # rest at both ends
+        if m.kind == "hop":  # blended: it moves on through both ends, up the needle
+            assert np.all(np.abs(planned.qd[idx[[0, -1]]]).max(axis=1) > 0), m.kind
+            for a, b in ((idx[0], idx[0] + 1), (idx[-1], idx[-1] - 1)):
+                d = planned.tcp[b] - planned.tcp[a]
+                assert np.linalg.norm(d[:2]) <= 0.1 * d[2], m.kind  # within 6 deg of up
         tip_steps = np.linalg.norm(np.diff(planned.tcp[idx], axis=0), axis=1)
         assert tip_steps.max() <= step + 1e-12, m.kind
         if m.kind == "hop":  # clearance point to clearance point
@@ -328,23 +332,19 @@ def test_planned_drawing_keeps_the_limits_from_home_to_home(planned: Trajectory,
                                atol=1e-12)
 
 
-def test_planned_moves_take_their_lower_bound(planned: Trajectory) -> None:
-    m = planned.metrics()
-    for mv in planned.moves:  # every joint has the same limits: the bound is reached
-        assert mv.duration_s == pytest.approx(mv.lower_bound_s, rel=REL)
-    assert m["move_time_over_bound_max"] == pytest.approx(1.0, rel=REL)
-    hops = [mv for mv in planned.moves if mv.kind == "hop"]
-    assert m["hops"] == len(hops) == 2 and m["lifts"] == 0 and m["moves"] == 4
-    assert m["hop_s"] == pytest.approx(sum(mv.duration_s for mv in hops), rel=1e-12)
-    assert m["hop_straight_s"] == pytest.approx(
-        sum(mv.straight_m for mv in hops) / 0.060, rel=1e-12)  # toolpath.feed_travel_mm_s
-    assert m["travel_saved_s"] == pytest.approx(m["hop_straight_s"] - m["hop_s"], abs=1e-12)
-    assert m["home_moves_s"] == pytest.approx(
-        planned.moves[0].duration_s + planned.moves[-1].duration_s, rel=1e-12)
-    # No sign is asserted for the saving: on this 24 mm drawing the hops are 3 and 10 mm,
-    # the planned (rest-to-rest) moves take 0.089 and 0.196 s against 0.052 and 0.172 s
-    # at a constant 60 mm/s, so travel_saved_s is -0.06 s; it turns positive only for
-    # drawings whose hops are long.
+def test_planned_drawing_is_one_continuous_jerk_limited_motion(planned: Trajectory) -> None:
+    jerk = planned.params.jerk_rad_s3
+    assert jerk is not None  # the default limits one
+    dt = np.diff(planned.t)
+    step = np.abs(np.diff(planned.qd, axis=0)) / dt[:, None]
+    assert np.all(step <= planned.limits.acceleration * (1 + 1e-6))  # velocity continuous
+    jk = np.abs(np.diff(planned.qdd, axis=0)) / dt[:, None]
+    assert jk.max() <= jerk * (1 + 1e-6)
+    # at rest only at home, where the needle leaves the ink and where an approach begins
+    rest = np.flatnonzero(np.abs(planned.qd).max(axis=1) == 0.0)
+    travel = planned.segment_kinds() == 0
+    changes = set((np.flatnonzero(travel[:-1] != travel[1:]) + 1).tolist())
+    assert set(rest.tolist()) <= changes | {0, len(planned.t) - 1}
 
 
 def test_straight_travel_marks_the_same(planned: Trajectory, straight: Trajectory) -> None:
@@ -357,7 +357,6 @@ def test_straight_travel_marks_the_same(planned: Trajectory, straight: Trajector
         assert np.array_equal(straight.q[straight.kind == k], planned.q[planned.kind == k])
     # straight travel starts at the first clearance point, not at home
     assert not np.allclose(straight.q[0], HOME)
-    assert len(straight.laws) == 1 and len(planned.laws) == planned.entries
 
 
 def test_planned_travel_needs_a_planner(chain: Chain, desc: RobotDescription) -> None:

@@ -534,8 +534,13 @@ class TrajectoryConfig:
     travel_feed_mm_s: float = bounded(200.0, lo=0.1, hi=10_000, unit="mm/s")
     # per-joint acceleration limit (see conf/trajectory)
     accel_rad_s2: float = bounded(10.0, lo=0.01, hi=10_000, unit="rad/s^2")
-    # jerk limits are not implemented: must be null
-    jerk_rad_s3: float | None = bounded(None, lo=0, lo_open=True, hi=1e6, unit="rad/s^3")
+    # every joint's jerk limit (null: acceleration-limited; see docs/timelaw.md)
+    jerk_rad_s3: float | None = bounded(500.0, lo=0, lo_open=True, hi=1e6, unit="rad/s^3")
+    # the tip's acceleration limit while marking (tangential and centripetal together)
+    tip_accel_mm_s2: float | None = bounded(100.0, lo=0, lo_open=True, hi=1e6,
+                                            unit="mm/s^2")
+    # a blended travel move's first tangent reach (raised through lifts_mm if it fails)
+    blend_reach_mm: float = bounded(4.0, lo=0, hi=100, unit="mm")
     # longer segments (travel, lifts) get points on the tip line
     max_step_mm: float = bounded(0.5, lo=MIN_MAX_STEP_MM, hi=100, unit="mm",
                                  why="the longest chord kept as is")
@@ -550,6 +555,16 @@ class TrajectoryConfig:
     def travel_feed_m_s(self) -> float:
         """The cap on the tip speed of travel moves, m/s."""
         return float(self.travel_feed_mm_s) / 1000
+
+    @property
+    def tip_accel_m_s2(self) -> float | None:
+        """The tip's acceleration limit while marking, m/s^2 (``None``: none)."""
+        return None if self.tip_accel_mm_s2 is None else float(self.tip_accel_mm_s2) / 1000
+
+    @property
+    def blend_reach_m(self) -> float:
+        """A blended travel move's first tangent reach, m."""
+        return float(self.blend_reach_mm) / 1000
 
     @property
     def max_step_m(self) -> float:
@@ -774,6 +789,11 @@ class StudyConfig:
                                  unit="rad/s")
     # the rate study's plant step (4 kHz)
     rate_plant_dt_s: float = bounded(0.00025, lo=MIN_DT_S, hi=0.1, unit="s")
+    # the time-law study: trajectory.tip_accel_mm_s2 x trajectory.jerk_rad_s3
+    timelaw_tip_mm_s2: list[float] = bounded(factory=lambda: [100.0, 200.0, 400.0], lo=0,
+                                             lo_open=True, hi=1e6, unit="mm/s^2")
+    timelaw_jerk_rad_s3: list[float] = bounded(factory=lambda: [500.0, 2000.0], lo=0,
+                                               lo_open=True, hi=1e6, unit="rad/s^3")
     actuator: ActuatorStudyConfig = field(default_factory=ActuatorStudyConfig)
 
 

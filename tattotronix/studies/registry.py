@@ -10,14 +10,14 @@ from collections.abc import Callable
 from pathlib import Path
 
 from tattotronix.io.jsontypes import JsonDict
-from tattotronix.studies import approach, control, rate, resample
+from tattotronix.studies import approach, control, rate, resample, timelaw
 from tattotronix.studies.base import ClosedLoopStudy
 
 __all__ = ["STUDIES", "study_figures", "study_summary"]
 
 #: study name -> study, in the order the figures are drawn and summarised
 STUDIES: dict[str, ClosedLoopStudy] = {
-    m.STUDY.name: m.STUDY for m in (control, approach, resample, rate)}
+    m.STUDY.name: m.STUDY for m in (control, approach, resample, rate, timelaw)}
 
 
 def study_figures(data: Path, name: str, folder: Path,

@@ -57,8 +57,8 @@ from tattotronix.trajectory.path import (
     segment_kinds,
     turn_radii,
 )
-from tattotronix.trajectory.timelaw import JointLimits, TimeLaw, time_parameterise
-from tattotronix.trajectory.travel import TravelPlanner
+from tattotronix.trajectory.timelaw import JointLimits, TimeLaw, TipLimit, time_parameterise
+from tattotronix.trajectory.travel import Blend, TravelPlanner
 
 __all__ = [
     "NPZ_KEYS",
@@ -91,7 +91,10 @@ class TrajectoryParams:
         max_step_m: longest chord kept as is; longer ones are split (IK), m.
         corner_radius_m: bends tighter than this are corners, where the law may slow
             below the feed; elsewhere the feed must be held or the speed is refused, m.
-        jerk_rad_s3: a jerk limit; only ``None`` (acceleration-limited) is supported.
+        jerk_rad_s3: every joint's jerk limit, rad/s^3 (``None``: acceleration-limited).
+        tip_accel_m_s2: the tip's acceleration limit while marking and on the approach,
+            tangential and centripetal together, m/s^2 (``None``: none).
+        reach_m: a blended travel move's tangent reach (its first try), m.
         travel: ``planned`` (joint-space moves between strokes, from and to home;
             :mod:`~tattotronix.trajectory.travel`) or ``straight`` (straight tip lines at
             clearance, timed by the time law, as the original).
@@ -110,6 +113,8 @@ class TrajectoryParams:
     max_step_m: float
     corner_radius_m: float
     jerk_rad_s3: float | None
+    tip_accel_m_s2: float | None
+    reach_m: float
     travel: str
     clearance_mm: float
     home: tuple[float, ...]
@@ -130,6 +135,7 @@ class TrajectoryParams:
             corner_radius_m=tp.pitch_m / 2,
             max_step_m=tr.max_step_m,
             jerk_rad_s3=None if tr.jerk_rad_s3 is None else float(tr.jerk_rad_s3),
+            tip_accel_m_s2=tr.tip_accel_m_s2, reach_m=tr.blend_reach_m,
             travel=str(tr.travel), clearance_mm=float(tp.clearance_mm),
             home=tuple(float(v) for v in tr.home), from_home=bool(tr.from_home),
             straight_feed_m_s=tp.feed_travel_m_s,
@@ -152,11 +158,12 @@ class TrajectoryParams:
                                    "straight")
         if not all(math.isfinite(v) for v in self.home):
             raise TattotronixError(f"trajectory.home={list(self.home)} must be finite angles")
-        if self.jerk_rad_s3 is not None:
-            raise TattotronixError(
-                f"trajectory.jerk_rad_s3={self.jerk_rad_s3:g}: jerk-limited profiles are not "
-                "implemented; the time law is acceleration-limited (set "
-                "trajectory.jerk_rad_s3=null)")
+        for name, opt, key in (("jerk limit", self.jerk_rad_s3, "trajectory.jerk_rad_s3"),
+                               ("tip acceleration limit", self.tip_accel_m_s2,
+                                "trajectory.tip_accel_mm_s2")):
+            if opt is not None and not (math.isfinite(opt) and opt > 0):
+                raise TattotronixError(f"the {name} must be a positive number or null, got "
+                                       f"{key}={opt:g}")
 
 
 class SpeedRefused(TattotronixError):
@@ -279,8 +286,11 @@ def speed_limit(path: JointPath, dq: Array, d2q: Array, limits: JointLimits, *,
                       (float(u[0]), float(u[1]), float(u[2])), float(radius[i]), int(idx.size))
 
 
-def _caps(seg: NDArray[np.int8], n_pts: int, mark: float, travel: float) -> Array:
+def _caps(seg: NDArray[np.int8], n_pts: int, mark: float, travel: float,
+          free: NDArray[np.bool_] | None = None) -> Array:
     feed = np.where(seg == TRAVEL, travel, mark)
+    if free is not None:
+        feed = np.where(free, math.inf, feed)
     cap = np.full(n_pts, math.inf)
     cap[:-1] = feed
     cap[1:] = np.minimum(cap[1:], feed)
@@ -292,18 +302,18 @@ class MoveSummary:
     """One planned travel move, in the trajectory (see :mod:`~.travel`).
 
     Attributes:
-        kind: ``hop``, ``lift``, ``from_home`` or ``to_home``.
-        start_s: when it starts, s.
-        duration_s: its time, s.
-        lower_bound_s: the least time any rest-to-rest move between its poses takes, s.
+        kind: ``hop``, ``from_home`` or ``to_home``.
+        start_s: when it starts (at its first pose, the clearance point), s.
+        duration_s: its time to its last pose, s.
         straight_m: straight tip distance between its ends, m.
+        reach_m: the tangent reach that passed the checks, m.
     """
 
     kind: str
     start_s: float
     duration_s: float
-    lower_bound_s: float
     straight_m: float
+    reach_m: float
 
 
 @dataclass(frozen=True)
@@ -324,7 +334,7 @@ class Trajectory:
         s: (N,) tip arc length, m.
         tip_speed: (N,) tip speed, m/s.
         qdd_ends: (N-1, 2, n) joint acceleration at both ends of each interval, rad/s^2.
-        laws: the time laws of the ink pieces (one for straight travel).
+        law: the time law of the whole drawing.
         moves: the planned travel moves, in order (none for straight travel).
         limits: the joint limits it keeps.
         params: the settings it was planned with.
@@ -347,7 +357,7 @@ class Trajectory:
     s: Array
     tip_speed: Array
     qdd_ends: Array
-    laws: tuple[TimeLaw, ...]
+    law: TimeLaw
     moves: tuple[MoveSummary, ...]
     limits: JointLimits
     params: TrajectoryParams
@@ -355,14 +365,6 @@ class Trajectory:
     entries: int
     marked_m: float
     timings_s: dict[str, float] = field(default_factory=dict)
-
-    @property
-    def law(self) -> TimeLaw:
-        """The one time law of a straight-travel trajectory (the whole path)."""
-        if len(self.laws) != 1 or self.moves:
-            raise AttributeError("a trajectory with planned travel has one time law per ink "
-                                 "piece: see .laws")
-        return self.laws[0]
 
     @property
     def duration_s(self) -> float:
@@ -378,28 +380,36 @@ class Trajectory:
         """(N-1,) 1 marking, 2 approach, 0 travel."""
         return segment_kinds(self.kind)
 
+    def peak_tip_accel_marking(self) -> float:
+        """The largest tip acceleration on the points of marking and approach segments,
+        m/s^2 (zero when the law had no tip limit to measure it against)."""
+        ink = self.segment_kinds() != TRAVEL
+        pts = np.zeros(len(self.t), bool)
+        pts[:-1] |= ink
+        pts[1:] |= ink
+        acc = self.law.tip_accel
+        return float(acc[pts].max()) if pts.any() else 0.0
+
     def travel_metrics(self) -> JsonDict:
         """Planned travel: the moves, their time, and the saving over the original's
         straight travel at ``toolpath.feed_travel_mm_s`` (JSON-ready)."""
-        hops = [m for m in self.moves if m.kind in ("hop", "lift")]
+        hops = [m for m in self.moves if m.kind == "hop"]
         home = [m for m in self.moves if m.kind in ("from_home", "to_home")]
         hop_s = sum(m.duration_s for m in hops)
         base_feed = self.params.straight_feed_m_s * self.params.speed
         straight_s = sum(m.straight_m for m in self.moves if m.kind == "hop") / base_feed
-        worst = max((m.duration_s / m.lower_bound_s for m in self.moves
-                     if m.lower_bound_s > 0), default=1.0)
+        first = self.params.reach_m
         return {
             "travel": self.params.travel,
             "moves": len(self.moves),
             "hops": sum(m.kind == "hop" for m in self.moves),
-            "lifts": sum(m.kind == "lift" for m in self.moves),
+            "lifts": sum(m.reach_m > first for m in self.moves),
             "hop_s": hop_s,
             "hop_straight_s": straight_s,
             "straight_feed_mm_s": base_feed * 1000.0,
             "travel_saved_s": straight_s - hop_s,
             "cycle_straight_travel_s": self.duration_s - hop_s + straight_s,
             "home_moves_s": sum(m.duration_s for m in home),
-            "move_time_over_bound_max": worst,
         }
 
     def metrics(self) -> JsonDict:
@@ -441,7 +451,15 @@ class Trajectory:
             "travel_feed_mm_s": self.params.travel_feed_m_s * self.params.speed * 1000.0,
             "marking_below_feed_pct": 100.0 * slow_len / mark_len if mark_len > 0 else 0.0,
             "peak_tip_speed_mm_s": float(self.tip_speed.max()) * 1000.0,
-            "timelaw_stepped_points": sum(law.stepped for law in self.laws),
+            "timelaw_stepped_points": self.law.stepped,
+            "jerk_limit_rad_s3": self.params.jerk_rad_s3,
+            "peak_jerk_rad_s3_max": float(np.abs(np.diff(self.qdd, axis=0)
+                                                 / dt[:, None]).max()) if len(dt) else 0.0,
+            "jerk_window_s_max": self.law.window_s,
+            "timelaw_repairs": self.law.repairs,
+            "tip_accel_limit_mm_s2": None if self.params.tip_accel_m_s2 is None
+            else self.params.tip_accel_m_s2 * 1000.0,
+            "peak_tip_accel_marking_mm_s2": self.peak_tip_accel_marking() * 1000.0,
             **self.speed.summary(),
             **self.travel_metrics(),
         }
@@ -492,32 +510,133 @@ def load_trajectory(file: str | Path) -> StoredTrajectory:
                             marked=r.marked, tcp=r.tcp, provenance=dict(r.provenance))
 
 
-def _timeable(piece: JointPath, chain: Chain) -> JointPath:
-    """A piece of two points gets its joint-space midpoint (rest to rest over one chord
-    needs a point in between); others are returned as they are."""
-    if len(piece) != 2:
-        return piece
-    q = np.vstack([piece.q[0], 0.5 * (piece.q[0] + piece.q[1]), piece.q[1]])
-    tcp, _ = chain.fk(q)
-    seg_kind = piece.segment_kinds()[0]
-    kind = np.array([piece.kind[0], seg_kind if seg_kind != APPROACH else APPROACH,
-                     piece.kind[1]], np.int8)
-    uvz = np.vstack([piece.uvz_mm[0], 0.5 * (piece.uvz_mm[0] + piece.uvz_mm[1]),
-                     piece.uvz_mm[1]])
-    return JointPath(piece.joints, q, tcp, kind, uvz,
-                     np.array([piece.source[0], -1, piece.source[1]], np.int64))
-
-
-def _time_piece(piece: JointPath, params: TrajectoryParams,
-                limits: JointLimits) -> TimeLaw:
-    """The rest-to-rest time law along one ink piece (or a whole straight-travel path)."""
-    s = piece.arc_length()
-    dq, d2q = path_derivatives(piece.q, s)
-    caps = _caps(piece.segment_kinds(), len(piece), params.feed_mark_m_s * params.speed,
-                 params.travel_feed_m_s * params.speed)
-    law = time_parameterise(s, dq, d2q, caps, limits)
+def _time_path(path: JointPath, params: TrajectoryParams, limits: JointLimits,
+               free: NDArray[np.bool_] | None = None) -> TimeLaw:
+    """The one time law of a whole drawing: the feeds (none on ``free`` segments: the
+    blended moves, bound by the joint limits alone), the joint limits, the tip's
+    acceleration while marking and on the approach, and the jerk limit; at rest at both
+    ends (and, with a jerk limit, where the needle leaves the ink and where each approach
+    begins)."""
+    s = path.arc_length()
+    dq, d2q = path_derivatives(path.q, s)
+    seg = path.segment_kinds()
+    caps = _caps(seg, len(path), params.feed_mark_m_s * params.speed,
+                 params.travel_feed_m_s * params.speed, free)
+    tip = None
+    if params.tip_accel_m_s2 is not None:
+        dp, d2p = path_derivatives(path.tcp, s)
+        tip = TipLimit(dp, d2p, params.tip_accel_m_s2, seg != TRAVEL)
+    # with a jerk limit, the needle comes to rest where it leaves the ink and where each
+    # approach begins, and each stretch between is filtered with the window it needs
+    rests = _travel_ends(seg) if params.jerk_rad_s3 is not None else None
+    law = time_parameterise(s, dq, d2q, caps, limits, tip=tip,
+                            jerk_rad_s3=params.jerk_rad_s3, rests=rests)
     law.check(limits)
     return law
+
+
+def _travel_ends(seg: NDArray[np.int8]) -> NDArray[np.int64]:
+    """Interior points where travel begins or ends, none next to another."""
+    travel = seg == TRAVEL
+    ends = np.flatnonzero(travel[:-1] != travel[1:]) + 1
+    keep: list[int] = []
+    for i in ends.tolist():
+        if not keep or i - keep[-1] > 1:
+            keep.append(i)
+    return np.asarray(keep, dtype=np.int64)
+
+
+def _up_tangent(path: JointPath, i: int, j: int) -> Array:
+    """``dq/ds`` at point ``i`` pointing away from its neighbour ``j`` (rad per metre of
+    tip travel): up the needle at a clearance point whose neighbour is below it."""
+    if not 0 <= j < len(path):
+        return np.zeros(path.q.shape[1])
+    ds = float(np.linalg.norm(path.tcp[i] - path.tcp[j]))
+    return (path.q[i] - path.q[j]) / ds if ds > 0 else np.zeros(path.q.shape[1])
+
+
+@dataclass
+class _Assembly:
+    """The drawing's one path with the blended moves spliced in, as it grows."""
+
+    path: JointPath
+    origin: Array
+    parts: dict[str, list[NDArray[Any]]] = field(default_factory=dict)
+    free: list[NDArray[np.bool_]] = field(default_factory=list)
+    moves: list[tuple[str, int, int, float, float]] = field(default_factory=list)
+    size: int = 0
+
+    def add_path(self, a: int, b: int) -> None:
+        """Points ``a`` to ``b - 1`` of the path (a piece between two hops)."""
+        p = self.path
+        self._add(p.q[a:b], p.tcp[a:b], p.kind[a:b], p.uvz_mm[a:b], p.source[a:b])
+
+    def add_blend(self, blend: Blend, first: bool, last: bool) -> None:
+        """A blended move's points (its end poses only where no piece holds them)."""
+        lo, hi = (0 if first else 1), (len(blend.q) if last else len(blend.q) - 1)
+        start = self.size - (0 if first else 1)
+        m = hi - lo
+        self._add(blend.q[lo:hi], blend.tcp[lo:hi], np.full(m, TRAVEL, np.int8),
+                  (blend.tcp[lo:hi] - self.origin) * 1000.0, np.full(m, -1, np.int64),
+                  free=True)
+        end = self.size - (1 if last else 0)
+        self.moves.append((blend.kind, start, end, blend.straight_m, blend.reach_m))
+
+    def _add(self, q: Array, tcp: Array, kind: NDArray[np.int8], uvz: Array,
+             source: NDArray[np.int64], free: bool = False) -> None:
+        for key, arr in (("q", q), ("tcp", tcp), ("kind", kind), ("uvz", uvz),
+                         ("source", source)):
+            self.parts.setdefault(key, []).append(arr)
+        # the segments that end at these points (the first point's joins the last part)
+        seg = np.full(len(q), free)
+        if self.size == 0:
+            seg = seg[1:]
+        self.free.append(seg)
+        self.size += len(q)
+
+    def result(self) -> tuple[JointPath, NDArray[np.bool_]]:
+        """The whole path, and which of its segments belong to a blended move."""
+        cat = {k: np.concatenate(v) for k, v in self.parts.items()}
+        path = JointPath(self.path.joints, cat["q"], cat["tcp"], cat["kind"].astype(np.int8),
+                         cat["uvz"], cat["source"].astype(np.int64))
+        return path, np.concatenate(self.free)
+
+
+def _blended(dense: JointPath, planner: TravelPlanner, params: TrajectoryParams,
+             origin: Array) -> _Assembly:
+    """The drawing's path with every hop, and the moves from and to home, replaced by a
+    blended move (:meth:`~.travel.TravelPlanner.blend`)."""
+    n = len(dense)
+    cut = np.flatnonzero(dense.hops(params.clearance_mm))
+    asm = _Assembly(dense, origin)
+    home = np.asarray(params.home, dtype=np.float64)
+    if home.shape != (dense.q.shape[1],):
+        raise TattotronixError(f"trajectory.home needs {dense.q.shape[1]} angles, got "
+                               f"{list(params.home)}")
+    same = float(np.abs(home - dense.q[0]).max()) <= 1e-12
+    if params.from_home and not same:
+        zero = np.zeros_like(home)
+        asm.add_blend(planner.blend(home, zero, dense.q[0], _up_tangent(dense, 0, 1),
+                                    "from_home", "the move from home"), True, False)
+    start = 0
+    for i in cut:
+        asm.add_path(start, int(i) + 1)
+        a, b = int(i), int(i) + 1
+        where = (f"the travel from panel ({dense.uvz_mm[a, 0]:.1f}, {dense.uvz_mm[a, 1]:.1f}) "
+                 f"to ({dense.uvz_mm[b, 0]:.1f}, {dense.uvz_mm[b, 1]:.1f}) mm")
+        up_a = _up_tangent(dense, a, a - 1) if a - 1 not in cut else np.zeros(0)
+        up_b = _up_tangent(dense, b, b + 1) if b not in cut else np.zeros(0)
+        zero = np.zeros(dense.q.shape[1])
+        asm.add_blend(planner.blend(dense.q[a], up_a if up_a.size else zero, dense.q[b],
+                                    up_b if up_b.size else zero, "hop", where), False, False)
+        start = b
+    asm.add_path(start, n)
+    if params.from_home:
+        zero = np.zeros_like(home)
+        back = planner.blend(dense.q[-1], _up_tangent(dense, n - 1, n - 2), home, zero,
+                             "to_home", "the way home")
+        asm.add_blend(back, False, True)
+    return asm
 
 
 def plan_trajectory(path: JointPath, chain: Chain, limits: JointLimits,
@@ -530,12 +649,12 @@ def plan_trajectory(path: JointPath, chain: Chain, limits: JointLimits,
         path: the IK path (:meth:`JointPath.from_npz`).
         chain: the kinematic model (densify's IK, the tip of the final ``q``).
         limits: joint velocity and acceleration limits.
-        params: feeds, speed, densify step, corner radius, travel mode.
+        params: feeds, speed, densify step, corner radius, limits, travel mode.
         ik: keyword arguments for the densify IK (``needle_axis``, ``dls_lambda``, ...).
         check_speed: refuse a speed that cannot hold the marking feed.
         planner: plans and checks the travel moves (required for planned travel).
         panel_origin_m: the panel frame's origin in the arm frame (``uvz_mm`` of the
-            planned moves' samples), m.
+            blended moves' samples), m.
 
     Returns:
         The trajectory.
@@ -544,7 +663,7 @@ def plan_trajectory(path: JointPath, chain: Chain, limits: JointLimits,
         SpeedRefused: ``params.speed`` cannot hold the marking feed within the limits.
         TattotronixError: bad parameters, a path the limits cannot time, IK failure on a
             densified chord, joint names that differ from the limits', or a travel move
-            no lift makes safe.
+            no reach makes safe.
     """
     params.validate()
     if tuple(path.joints) != tuple(limits.joints):
@@ -565,97 +684,26 @@ def plan_trajectory(path: JointPath, chain: Chain, limits: JointLimits,
                         speed=params.speed, corner_radius_m=params.corner_radius_m)
     if check_speed:
         check.raise_if_too_fast()
-    cut = np.flatnonzero(dense.hops(params.clearance_mm)) if planned else np.zeros(0, int)
-    bounds = np.concatenate(([0], cut + 1, [len(dense)]))
-    pieces = [_timeable(dense.slice(int(a), int(b)), chain)
-              for a, b in zip(bounds[:-1], bounds[1:], strict=True)]
-    # a piece of one point is a waypoint between two hops: the moves rest there
-    piece_laws = [_time_piece(p, params, limits) if len(p) > 1 else None for p in pieces]
-    laws = tuple(law for law in piece_laws if law is not None)
-    t3 = time.perf_counter()
-
-    # planned moves: home -> first piece, between pieces, last piece -> home
-    gaps: list[list[Any]] = [[] for _ in range(len(pieces) + 1)]
+    origin = np.asarray(panel_origin_m, dtype=np.float64)
+    free = None
+    moves: list[tuple[str, int, int, float, float]] = []
+    whole = dense
     if planned:
         assert planner is not None
-        home = np.asarray(params.home, dtype=np.float64)
-        if home.shape != (len(limits.joints),):
-            raise TattotronixError(f"trajectory.home needs {len(limits.joints)} angles, got "
-                                   f"{list(params.home)}")
-        if params.from_home:
-            gaps[0] = planner.plan(home, pieces[0].q[0], "from_home", "the move from home")
-            gaps[-1] = planner.plan(pieces[-1].q[-1], home, "to_home", "the way home")
-        for k in range(1, len(pieces)):
-            a, b = pieces[k - 1], pieces[k]
-            where = (f"the travel from panel ({a.uvz_mm[-1, 0]:.1f}, {a.uvz_mm[-1, 1]:.1f}) "
-                     f"to ({b.uvz_mm[0, 0]:.1f}, {b.uvz_mm[0, 1]:.1f}) mm")
-            gaps[k] = planner.plan(a.q[-1], b.q[0], "hop", where)
+        asm = _blended(dense, planner, params, origin)
+        whole, free = asm.result()
+        moves = asm.moves
+    t3 = time.perf_counter()
+    law = _time_path(whole, params, limits, free)
     t4 = time.perf_counter()
-
-    origin = np.asarray(panel_origin_m, dtype=np.float64)
-    parts: dict[str, list[Any]] = {k: [] for k in ("t", "q", "qd", "qdd", "kind", "uvz",
-                                                   "source", "tcp", "speed", "ends")}
-    moves: list[MoveSummary] = []
-    clock = 0.0
-
-    def put(t: Array, q: Array, qd: Array, qdd: Array, kind: Any, uvz: Array, src: Any,
-            tcp: Array, speed: Array, ends: Array, first: bool, last: bool = True) -> None:
-        # parts meet at rest at the same pose: the join is kept once, from the ink piece
-        # (its kind and IK index), so a move drops its end there and a piece never drops
-        lo, hi = (0 if first else 1), (len(t) if last else len(t) - 1)
-        parts["t"].append(clock + t[lo:hi])
-        parts["q"].append(q[lo:hi])
-        parts["qd"].append(qd[lo:hi])
-        parts["qdd"].append(qdd[lo:hi])
-        parts["kind"].append(np.broadcast_to(np.asarray(kind, np.int8), (len(t),))[lo:hi])
-        parts["uvz"].append(uvz[lo:hi])
-        parts["source"].append(np.broadcast_to(np.asarray(src, np.int64), (len(t),))[lo:hi])
-        parts["tcp"].append(tcp[lo:hi])
-        parts["speed"].append(speed[lo:hi])
-        parts["ends"].append(ends)
-
-    for k in range(len(pieces) + 1):
-        piece_next = k < len(pieces) and piece_laws[k] is not None
-        for i, m in enumerate(gaps[k]):
-            if m.duration_s <= 0:  # already there (home is the first pose): no samples
-                continue
-            moves.append(MoveSummary(m.kind, clock, m.duration_s, m.lower_bound_s,
-                                     m.straight_m))
-            jac = chain.jacobian(m.q)[:, :3, :]
-            tip_v = np.linalg.norm(np.einsum("kij,kj->ki", jac, m.qd), axis=1)
-            ends_here = piece_next and i == len(gaps[k]) - 1 and len(m.t) > 1
-            first = not parts["t"]
-            put(m.t, m.q, m.qd, m.qdd, TRAVEL, (m.tcp - origin) * 1000.0, -1, m.tcp, tip_v,
-                m.qdd_ends, first, last=not ends_here)
-            clock += m.duration_s
-        if k < len(pieces):
-            p, law = pieces[k], piece_laws[k]
-            tcp_p, _ = chain.fk(p.q)
-            if law is None:
-                if not parts["t"]:  # a path that starts with a hop: its first point
-                    n_j = p.q.shape[1]
-                    put(np.zeros(1), p.q, np.zeros((1, n_j)), np.zeros((1, n_j)), p.kind,
-                        p.uvz_mm, p.source, tcp_p, np.zeros(1), np.zeros((0, 2, n_j)), True)
-                continue
-            joined = bool(parts["t"]) and not gaps[k]  # straight travel: never
-            put(law.t, p.q, law.qd, law.qdd, p.kind, p.uvz_mm, p.source, tcp_p, law.sdot,
-                law.qdd_ends, not joined)
-            clock += law.duration_s
-    t_all = np.concatenate(parts["t"])
-    q_all = np.concatenate(parts["q"])
-    kind = np.concatenate(parts["kind"]).astype(np.int8)
-    tcp = np.concatenate(parts["tcp"])
-    marked = np.zeros(len(kind), bool)
-    marked[1:] = (kind[:-1] == MARK) & (kind[1:] == MARK)
-    t5 = time.perf_counter()
+    summaries = tuple(MoveSummary(kind, float(law.t[a]), float(law.t[b] - law.t[a]),
+                                  straight, reach)
+                      for kind, a, b, straight, reach in moves)
     return Trajectory(
-        joints=dense.joints, t=t_all, q=q_all, qd=np.concatenate(parts["qd"]),
-        qdd=np.concatenate(parts["qdd"]), kind=kind, marked=marked, tcp=tcp,
-        uvz_mm=np.concatenate(parts["uvz"]), source=np.concatenate(parts["source"]),
-        s=np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(tcp, axis=0), axis=1)))),
-        tip_speed=np.concatenate(parts["speed"]), qdd_ends=np.concatenate(parts["ends"]),
-        laws=laws, moves=tuple(moves), limits=limits, params=params, speed=check,
-        entries=dense.entries(), marked_m=dense.marked_length_m(),
-        timings_s={"densify": t1 - t0, "derivatives": t2 - t1,
-                   "time_law": sum(law.solve_s for law in laws), "travel": t4 - t3,
-                   "total": t5 - t0})
+        joints=dense.joints, t=law.t, q=whole.q, qd=law.qd, qdd=law.qdd, kind=whole.kind,
+        marked=whole.marked(), tcp=whole.tcp, uvz_mm=whole.uvz_mm, source=whole.source,
+        s=law.s, tip_speed=law.sdot, qdd_ends=law.qdd_ends, law=law, moves=summaries,
+        limits=limits, params=params, speed=check, entries=dense.entries(),
+        marked_m=dense.marked_length_m(),
+        timings_s={"densify": t1 - t0, "derivatives": t2 - t1, "travel": t3 - t2,
+                   "time_law": t4 - t3, "total": t4 - t0})

@@ -41,21 +41,33 @@ within the limits too).
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.errors import TattotronixError
 from tattotronix.robot.description import RobotDescription
 
-__all__ = ["JointLimits", "TimeLaw", "time_parameterise"]
+__all__ = ["JointLimits", "TimeLaw", "TipLimit", "time_parameterise"]
 
 Array = NDArray[np.float64]
 _MAX_PASSES = 50  # forward/backward repeats before giving up (one on real paths)
 _REL_TOL = 1e-9  # rounding slack in the feasibility tests (relative to a limit)
 _SHRINK = 1.0 - 1e-9  # the limits the passes use, relative to the true ones
+_TIP_DIRS = 8  # directions of the tip-acceleration polygon (a 16-gon)
+_TIP_SHRINK = math.cos(math.pi / (2 * _TIP_DIRS))  # the 16-gon's inradius over the circle's
+_JERK_GEOMETRY = 0.5  # share of the jerk limit the path's own third derivative may take
+_WINDOW_MARGIN = 1.25  # the filter window over 2 a / J (room for the geometric share)
+_MAX_REPAIRS = 60  # rounds of lowering caps where the filtered law exceeds a limit
+_WIDEN_EVERY = 6  # rounds after which the filter window widens (and the caps reset)
+_WIDEN = 1.5  # how much it widens
+_MIN_WINDOW_S = 1e-3  # the shortest filter window, s
+_REPAIR_MARGIN = 0.9  # a repaired cap sits this far under the speed^2 that fits
+_MIN_CAP = 1e-12  # (m/s)^2: a repaired cap never reaches zero inside the path
+_REPAIR_REACH = 1.5  # windows either side of a point whose caps a repair lowers
 
 
 @dataclass(frozen=True)
@@ -111,6 +123,10 @@ class TimeLaw:
             joints' jumps at points where curvature changes).
         stepped: points the two passes visited one at a time (the rest were copied).
         solve_s: wall time of the passes, s.
+        tip_accel: (N,) the tip's acceleration magnitude, m/s^2 (zeros without a tip
+            limit).
+        window_s: the jerk filter's window, s (0: no jerk limit).
+        repairs: rounds of lowered caps the jerk limit took.
     """
 
     t: Array
@@ -122,6 +138,9 @@ class TimeLaw:
     qdd_ends: Array
     stepped: int
     solve_s: float
+    tip_accel: Array
+    window_s: float = 0.0
+    repairs: int = 0
 
     @property
     def duration_s(self) -> float:
@@ -226,9 +245,297 @@ def _passes(cap: Array, p: Array, q: Array, a2: Array, fa: Array, fb: Array, ba:
     return x, stepped
 
 
+@dataclass(frozen=True)
+class TipLimit:
+    """The tip's acceleration limit (tangential and centripetal together) where it applies.
+
+    Attributes:
+        dp: (N, 3) ``dp/ds`` of the tip path (finite differences), 1.
+        d2p: (N, 3) ``d2p/ds2``, 1/m.
+        accel_m_s2: the limit on ``|p'' sdot^2 + p' sddot|``, m/s^2.
+        on: (N-1,) the intervals it applies to (marking and approach).
+    """
+
+    dp: Array
+    d2p: Array
+    accel_m_s2: float
+    on: NDArray[np.bool_]
+
+    def accel(self, sdot: Array, sddot: Array) -> Array:
+        """(N,) the tip's acceleration magnitude at each point, m/s^2."""
+        a = self.d2p * (sdot * sdot)[:, None] + self.dp * sddot[:, None]
+        return np.asarray(np.linalg.norm(a, axis=1))
+
+    def slice(self, part: slice) -> TipLimit:
+        """The limit on points ``part`` (a contiguous stretch)."""
+        stop = part.stop - 1 if part.stop is not None else None
+        return TipLimit(self.dp[part], self.d2p[part], self.accel_m_s2,
+                        self.on[part.start:stop])
+
+    def points(self) -> NDArray[np.bool_]:
+        """(N,) the points of an interval it applies to."""
+        pts = np.zeros(len(self.on) + 1, bool)
+        pts[:-1] |= self.on
+        pts[1:] |= self.on
+        return pts
+
+    def channels(self) -> tuple[Array, Array]:
+        """Virtual joints whose limits, together, keep the tip's acceleration inside the
+        circle of radius ``accel_m_s2``.
+
+        With ``t`` the unit tangent, ``p' = c t`` and ``p'' = alpha t + beta n``, the tip's
+        acceleration is ``(c u + alpha x) t + beta x n``; channel ``k`` is its component
+        along the direction ``theta_k = k pi / K`` of that plane (``K`` =
+        :data:`_TIP_DIRS`), each limited to ``accel cos(pi / 2K)`` (:data:`_TIP_SHRINK`):
+        the regular 2K-gon those limits cut out lies inside the circle.
+        """
+        c = np.linalg.norm(self.dp, axis=1)
+        unit = np.divide(self.dp, c[:, None], out=np.zeros_like(self.dp),
+                         where=c[:, None] > 0)
+        alpha = np.einsum("ij,ij->i", self.d2p, unit)
+        beta = np.linalg.norm(self.d2p - alpha[:, None] * unit, axis=1)
+        theta = np.arange(_TIP_DIRS) * (math.pi / _TIP_DIRS)
+        dg = c[:, None] * np.cos(theta)
+        d2g = alpha[:, None] * np.cos(theta) + beta[:, None] * np.sin(theta)
+        return dg, d2g
+
+
+def _box_filter_law(t: Array, s: Array, v: Array, u: Array, window: float
+                    ) -> tuple[Array, Array, Array]:
+    """Filter the path position ``s(t)`` with a moving average of ``window`` seconds.
+
+    ``s(t)`` is the law's exact piecewise-quadratic position (at rest before 0 and after
+    the end). The filtered ``s_f(t) = (1/W) int_{t-W/2}^{t+W/2} s`` has ``sdot_f`` the
+    window's mean speed, ``sddot_f = (sdot(t + W/2) - sdot(t - W/2)) / W`` (continuous)
+    and path jerk ``(sddot(t + W/2) - sddot(t - W/2)) / W``, at most twice the largest
+    path acceleration over ``W``: the FIR jerk limiter of CNC feed planning (Biagiotti and
+    Melchiorri, "Trajectory Planning for Automatic Machines and Robots", 2008). The
+    geometric path is untouched: only its timing changes, and it lasts ``W`` longer.
+
+    Returns:
+        ``(t_f, sdot_f, sddot_f)`` at the points ``s`` (times from 0).
+    """
+    n_pts = len(t)
+    dt = np.diff(t)
+    cum = np.concatenate(([0.0], np.cumsum(s[:-1] * dt + v[:-1] * dt**2 / 2
+                                          + u * dt**3 / 6)))
+    t_end = float(t[-1])
+    s_end = float(s[-1])
+
+    def at(tq: Array) -> tuple[Array, Array, Array]:
+        k = np.clip(np.searchsorted(t, tq, side="right") - 1, 0, n_pts - 2)
+        tau = tq - t[k]
+        uk = u[k]
+        pos = s[k] + v[k] * tau + uk * tau**2 / 2
+        vel = v[k] + uk * tau
+        area = cum[k] + s[k] * tau + v[k] * tau**2 / 2 + uk * tau**3 / 6
+        before, after = tq < 0.0, tq > t_end
+        pos = np.where(before, s[0], np.where(after, s_end, pos))
+        vel = np.where(before | after, 0.0, vel)
+        area = np.where(before, s[0] * tq,
+                        np.where(after, cum[-1] + s_end * (tq - t_end), area))
+        return pos, vel, area
+
+    half = window / 2
+    # s_f(tau) lies between s(tau - W/2) and s(tau + W/2): each point's time moves by at
+    # most W/2. Bisection to the float's resolution.
+    lo, hi = t - half, t + half
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        below = (at(mid + half)[2] - at(mid - half)[2]) / window < s
+        lo = np.where(below, mid, lo)
+        hi = np.where(below, hi, mid)
+    tf = 0.5 * (lo + hi)
+    tf[0], tf[-1] = -half, t_end + half
+    pp, vp, _ = at(tf + half)
+    pm, vm, _ = at(tf - half)
+    return tf + half, (pp - pm) / window, (vp - vm) / window
+
+
+@dataclass(frozen=True)
+class _Channels:
+    """The constraint channels of one path: the joints, then the tip's virtual joints."""
+
+    dq: Array  # (N, C)
+    d2q: Array  # (N, C)
+    vel: Array  # (C,) velocity limits (inf for the tip's)
+    acc: Array  # (N-1, C) acceleration limit per interval (inf where off)
+
+    def slice(self, part: slice) -> _Channels:
+        """The channels of points ``part`` (a contiguous stretch)."""
+        stop = part.stop - 1 if part.stop is not None else None
+        return _Channels(self.dq[part], self.d2q[part], self.vel,
+                         self.acc[part.start:stop])
+
+
+def _caps(s: Array, ch: _Channels, sdot_cap: Array, n_joints: int,
+          jerk: float | None) -> Array:
+    """The squared path-speed cap per point: feed, velocity, acceleration standstill, and
+    with a jerk limit, the share of it the path's own third derivative takes at speed
+    (``|dq3/ds3| sdot^3 <= share J``)."""
+    h = np.diff(s)
+    acc_pt = np.full(ch.dq.shape, np.inf)
+    acc_pt[:-1] = ch.acc
+    acc_pt[1:] = np.minimum(acc_pt[1:], ch.acc)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        v_cap = np.min(ch.vel / np.abs(ch.dq), axis=1) ** 2  # inf where no joint moves
+        a_cap = np.nan_to_num(np.min(acc_pt / np.abs(ch.d2q), axis=1), nan=np.inf)
+        chord = np.nan_to_num(np.min(ch.acc / np.abs(np.diff(ch.dq, axis=0) / h[:, None]),
+                                     axis=1), nan=np.inf)
+    a_cap[:-1] = np.minimum(a_cap[:-1], chord)
+    a_cap[1:] = np.minimum(a_cap[1:], chord)
+    cap = np.minimum(np.minimum(np.asarray(sdot_cap, dtype=np.float64) ** 2, v_cap), a_cap)
+    if jerk is not None:
+        third = np.abs(np.diff(ch.d2q[:, :n_joints], axis=0) / h[:, None]).max(axis=1)
+        with np.errstate(divide="ignore"):
+            j_cap = (_JERK_GEOMETRY * jerk / third) ** (2.0 / 3.0)
+        cap[:-1] = np.minimum(cap[:-1], j_cap)
+        cap[1:] = np.minimum(cap[1:], j_cap)
+    cap[0] = cap[-1] = 0.0
+    return cap
+
+
+def _topp(cap: Array, s: Array, ch: _Channels) -> tuple[Array, int]:
+    """The largest feasible ``x = sdot^2`` under ``cap`` (the module docstring's passes)."""
+    h = np.diff(s)
+    p, q = _rows(ch.dq, ch.d2q, h)
+    a2 = np.tile(ch.acc, (1, 4))
+    fa, fb = _bound(q, p, a2)  # forward: x_{i+1} <= fa + fb x_i
+    ba, bb = _bound(p, q, a2)  # backward: x_i <= ba + bb x_{i+1}
+    stepped = 0
+    # Where the forward pass finds no reachable next state (x_i too fast for what
+    # follows), it leaves the next point at its cap and the backward pass slows x_i; the
+    # passes repeat on the slower profile until every interval is feasible (once, on
+    # every path but the most jagged).
+    upper = cap
+    for _ in range(_MAX_PASSES):
+        x, n_stepped = _passes(upper, p, q, a2, fa, fb, ba, bb)
+        stepped += n_stepped
+        if np.all(_feasible(p, q, a2, x[:-1], x[1:])) or np.array_equal(x, upper):
+            break
+        upper = x
+    x[0] = 0.0
+    return x, stepped
+
+
+def _law_of(x: Array, h: Array) -> tuple[Array, Array, Array, Array]:
+    """``(t, sdot, sddot, u)`` of the squared speeds ``x`` (``u`` per interval)."""
+    sdot = np.sqrt(x)
+    u = np.diff(x) / (2.0 * h)
+    denom = sdot[:-1] + sdot[1:]
+    if not np.all(denom > 0):
+        i = int(np.flatnonzero(~(denom > 0))[0])
+        raise TattotronixError(f"the time law stalls between points {i} and {i + 1}")
+    t = np.concatenate(([0.0], np.cumsum(2.0 * h / denom)))
+    sddot = np.empty(len(x))
+    sddot[0], sddot[-1] = u[0], u[-1]
+    sddot[1:-1] = 0.5 * (u[:-1] + u[1:])
+    return t, sdot, sddot, u
+
+
+def _slowdown(t: Array, sdot: Array, sddot: Array, dq: Array, d2q: Array,
+              limits: JointLimits, tip: TipLimit | None, jerk: float
+              ) -> tuple[Array, bool] | None:
+    """Where the filtered law exceeds a limit at a sample: ``(need, jerk_exceeded)`` with
+    ``need`` (N,) the factor each point's squared speed must shrink by (1 where it keeps
+    every limit), or ``None`` when every sample keeps every limit. Velocity scales with
+    ``sdot``, acceleration with ``sdot^2`` and jerk with ``sdot^3``."""
+    qd = dq * sdot[:, None]
+    qdd = d2q * (sdot * sdot)[:, None] + dq * sddot[:, None]
+    jk = np.abs(np.diff(qdd, axis=0) / np.diff(t)[:, None]).max(axis=1) / jerk
+    rv = (np.abs(qd) / limits.velocity).max(axis=1)
+    ra = (np.abs(qdd) / limits.acceleration).max(axis=1)
+    if tip is not None:
+        ra = np.maximum(ra, np.where(tip.points(), tip.accel(sdot, sddot)
+                                     / tip.accel_m_s2, 0.0))
+    rj = np.zeros(len(t))
+    rj[:-1] = jk
+    rj[1:] = np.maximum(rj[1:], jk)
+    if rv.max() <= 1.0 and ra.max() <= 1.0 and rj.max() <= 1.0:
+        return None
+    with np.errstate(divide="ignore"):
+        need = np.minimum(np.minimum(1.0 / rv**2, 1.0 / ra), rj ** (-2.0 / 3.0))
+    return np.minimum(need, 1.0), bool(rj.max() > 1.0)
+
+
+def _lower_caps(cap: Array, t: Array, sdot: Array, need: Array,
+                strikes: NDArray[np.int64], window: float) -> Array:
+    """The caps lowered, within :data:`_REPAIR_REACH` windows of every point that exceeds
+    a limit, to the filtered speed there times the shrink it needs, and a margin that
+    tightens each time the same point exceeds again (``strikes``)."""
+    out = cap.copy()
+    bad = np.flatnonzero(need < 1.0)
+    target = sdot[bad] ** 2 * need[bad] * _REPAIR_MARGIN ** (1 + strikes[bad])
+    reach = _REPAIR_REACH * window
+    lo = np.searchsorted(t, t[bad] - reach)
+    hi = np.searchsorted(t, t[bad] + reach, side="right")
+    for a, b, v in zip(lo, hi, target, strict=True):
+        np.minimum(out[a:b], v, out=out[a:b])
+    out[1:-1] = np.maximum(out[1:-1], _MIN_CAP)
+    out[0] = out[-1] = 0.0
+    return out
+
+
+@dataclass(frozen=True)
+class _Piece:
+    """The filtered law of one stretch between rests."""
+
+    t: Array
+    sdot: Array
+    sddot: Array
+    window: float
+    repairs: int
+    stepped: int
+
+
+def _jerk_piece(s: Array, ch: _Channels, cap: Array, dq: Array, d2q: Array,
+                limits: JointLimits, tip: TipLimit | None, jerk: float) -> _Piece:
+    """The jerk-limited law of one rest-to-rest stretch: the time-optimal law under
+    ``cap``, filtered by a window of ``2 a_path / J`` (times :data:`_WINDOW_MARGIN`) with
+    ``a_path`` the largest joint acceleration its path acceleration makes; where a sample
+    still exceeds a limit the caps around it are lowered and the law planned again, and
+    every :data:`_WIDEN_EVERY` rounds the window widens instead (what lower caps do not
+    mend is the filter's own path jerk)."""
+    h = np.diff(s)
+    stepped = 0
+    x, more = _topp(cap, s, ch)
+    stepped += more
+    t, sdot, _, u = _law_of(x, h)
+    a_path = float(np.max(np.abs(dq[:-1] * u[:, None]).max(axis=1), initial=0.0))
+    window = max(_WINDOW_MARGIN * 2.0 * a_path / jerk, _MIN_WINDOW_S)
+    base_cap, base = cap, (t, sdot, u)
+    strikes = np.zeros(len(s), np.int64)
+    since_widen = 0
+    for repairs in range(_MAX_REPAIRS + 1):
+        tf, sdf, sddf = _box_filter_law(t, s, sdot, u, window)
+        found = _slowdown(tf, sdf, sddf, dq, d2q, limits, tip, jerk)
+        if found is None:
+            return _Piece(tf, sdf, sddf, window, repairs, stepped)
+        need, jerk_exceeded = found
+        since_widen += 1
+        if jerk_exceeded and since_widen >= _WIDEN_EVERY:
+            # what lowered caps do not mend is the filter's own path jerk (the law's
+            # acceleration switching within one window): widen it and start again
+            window *= _WIDEN
+            cap, (t, sdot, u) = base_cap, base
+            strikes[:] = 0
+            since_widen = 0
+            continue
+        cap = _lower_caps(cap, tf, sdf, need, strikes, window)
+        strikes += need < 1.0
+        x, more = _topp(cap, s, ch)
+        stepped += more
+        t, sdot, _, u = _law_of(x, h)
+    raise TattotronixError(
+        f"the time law cannot keep the jerk limit {jerk:g} rad/s^3 on this path after "
+        f"{_MAX_REPAIRS} repairs: raise trajectory.jerk_rad_s3")
+
+
 def time_parameterise(s: Array, dq: Array, d2q: Array, sdot_cap: Array,
-                      limits: JointLimits) -> TimeLaw:
-    """The fastest rest-to-rest time law along a path under the caps and joint limits.
+                      limits: JointLimits, *, tip: TipLimit | None = None,
+                      jerk_rad_s3: float | None = None,
+                      rests: ArrayLike | None = None) -> TimeLaw:
+    """The fastest rest-to-rest time law along a path under the caps and limits.
 
     Args:
         s: (N,) strictly increasing arc length, m.
@@ -236,13 +543,22 @@ def time_parameterise(s: Array, dq: Array, d2q: Array, sdot_cap: Array,
         d2q: (N, n) ``d^2q/ds^2``, rad/m^2.
         sdot_cap: (N,) path-speed cap per point (the feed), m/s.
         limits: joint velocity and acceleration limits.
+        tip: the tip's acceleration limit (``None``: none).
+        jerk_rad_s3: every joint's jerk limit (``None``: acceleration-limited only). The
+            law is then the time-optimal one under the caps, filtered by a moving average
+            (:func:`_box_filter_law`) of ``2 a / J`` (times :data:`_WINDOW_MARGIN`); where
+            a sample still exceeds a limit, the caps around it are lowered and the law is
+            planned again, until none does.
+        rests: interior points where the law comes to rest (the stretches between them
+            are filtered each with its own window).
 
     Returns:
         The time law (see the module docstring).
 
     Raises:
         TattotronixError: fewer than 3 points (rest to rest needs one in between), a
-            chord of zero length, or a cap of zero inside the path.
+            chord of zero length, a cap of zero inside the path, or a jerk limit the
+            repairs cannot meet.
     """
     t0 = time.perf_counter()
     n_pts = len(s)
@@ -253,54 +569,66 @@ def time_parameterise(s: Array, dq: Array, d2q: Array, sdot_cap: Array,
     if not np.all(h > 0):
         i = int(np.flatnonzero(~(h > 0))[0])
         raise TattotronixError(f"path points {i} and {i + 1} coincide (zero-length step)")
+    if jerk_rad_s3 is not None and not (math.isfinite(jerk_rad_s3) and jerk_rad_s3 > 0):
+        raise TattotronixError(f"the jerk limit must be a positive number, got {jerk_rad_s3}")
     # a hair inside the limits, so rounding in the recurrences never lands above them
     vel, acc = limits.velocity * _SHRINK, limits.acceleration * _SHRINK
-    with np.errstate(divide="ignore"):
-        v_cap = np.min(vel / np.abs(dq), axis=1) ** 2  # inf where no joint moves
-        a_cap = np.min(acc / np.abs(d2q), axis=1)
-        chord = np.min(acc / np.abs(np.diff(dq, axis=0) / h[:, None]), axis=1)
-    a_cap[:-1] = np.minimum(a_cap[:-1], chord)
-    a_cap[1:] = np.minimum(a_cap[1:], chord)
-    cap = np.minimum(np.minimum(np.asarray(sdot_cap, dtype=np.float64) ** 2, v_cap), a_cap)
-    cap[0] = cap[-1] = 0.0
-    if not np.all(cap[1:-1] > 0):
-        i = int(np.flatnonzero(~(cap[1:-1] > 0))[0]) + 1
+    acc_int = np.broadcast_to(acc, (n_pts - 1, n))
+    dq_all, d2q_all, vel_all = dq, d2q, vel
+    if tip is not None:
+        dg, d2g = tip.channels()
+        lim = tip.accel_m_s2 * _TIP_SHRINK * _SHRINK
+        tip_acc = np.repeat(np.where(tip.on, lim, np.inf)[:, None], _TIP_DIRS, axis=1)
+        acc_int = np.hstack([acc_int, tip_acc])
+        dq_all, d2q_all = np.hstack([dq, dg]), np.hstack([d2q, d2g])
+        vel_all = np.concatenate([vel, np.full(_TIP_DIRS, np.inf)])
+    ch = _Channels(dq_all, d2q_all, vel_all, np.ascontiguousarray(acc_int))
+    cap = _caps(s, ch, sdot_cap, n, jerk_rad_s3)
+    inner = np.ones(n_pts, bool)
+    inner[[0, -1]] = False
+    stops = np.unique(np.asarray(rests if rests is not None else [], dtype=np.int64))
+    if stops.size and (stops.min() < 0 or stops.max() >= n_pts):
+        raise TattotronixError(f"rest points {stops.tolist()} outside the path's {n_pts}")
+    inner[stops] = False
+    cap[stops] = 0.0
+    if not np.all(cap[inner] > 0):
+        i = int(np.flatnonzero(inner & ~(cap > 0))[0])
         raise TattotronixError(f"the path speed cap is zero at point {i}: a feed of 0")
-    p, q = _rows(dq, d2q, h)
-    a2 = np.concatenate((acc, acc, acc, acc))
-    fa, fb = _bound(q, p, a2)  # forward: x_{i+1} <= fa + fb x_i
-    ba, bb = _bound(p, q, a2)  # backward: x_i <= ba + bb x_{i+1}
-    stepped = 0
-
-    # Forward then backward pass. Where the forward pass finds no reachable next state
-    # (x_i too fast for what follows), it leaves the next point at its cap and the
-    # backward pass slows x_i; the passes repeat on the slower profile until every
-    # interval is feasible (once, on every path but the most jagged).
-    upper = cap
-    for _ in range(_MAX_PASSES):
-        x, n_stepped = _passes(upper, p, q, a2, fa, fb, ba, bb)
-        stepped += n_stepped
-        if np.all(_feasible(p, q, a2, x[:-1], x[1:])) or np.array_equal(x, upper):
-            break
-        upper = x
-    x[0] = 0.0
-
-    sdot = np.sqrt(x)
-    u = np.diff(x) / (2.0 * h)
-    denom = sdot[:-1] + sdot[1:]
-    if not np.all(denom > 0):
-        i = int(np.flatnonzero(~(denom > 0))[0])
-        raise TattotronixError(f"the time law stalls between points {i} and {i + 1}")
-    dt = 2.0 * h / denom
-    t = np.concatenate(([0.0], np.cumsum(dt)))
-    sddot = np.empty(n_pts)
-    sddot[0], sddot[-1] = u[0], u[-1]
-    sddot[1:-1] = 0.5 * (u[:-1] + u[1:])
+    x, stepped = _topp(cap, s, ch)
+    t, sdot, sddot, u = _law_of(x, h)
+    windows: list[float] = []
+    repairs = 0
+    if jerk_rad_s3 is not None:
+        # each stretch between rests is filtered on its own, with the window its own
+        # path accelerations need: short on the ink, where the tip limit keeps them small
+        bounds = np.unique(np.concatenate(([0], stops, [n_pts - 1])))
+        t_parts, v_parts, a_parts = [np.zeros(1)], [np.zeros(1)], [np.zeros(1)]
+        clock = 0.0
+        for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+            part = slice(int(lo), int(hi) + 1)
+            piece = _jerk_piece(s[part], ch.slice(part), cap[part], dq[part], d2q[part],
+                                limits, tip.slice(part) if tip is not None else None,
+                                jerk_rad_s3)
+            t_parts.append(clock + piece.t[1:])
+            v_parts.append(piece.sdot[1:])
+            a_parts.append(piece.sddot[1:])
+            clock += float(piece.t[-1])
+            windows.append(piece.window)
+            repairs += piece.repairs
+            stepped += piece.stepped
+        t, sdot, sddot = (np.concatenate(t_parts), np.concatenate(v_parts),
+                          np.concatenate(a_parts))
     qd = dq * sdot[:, None]
-    qdd = d2q * x[:, None] + dq * sddot[:, None]
-    ends = np.empty((n_pts - 1, 2, n))
-    ends[:, 0] = d2q[:-1] * x[:-1, None] + dq[:-1] * u[:, None]
-    ends[:, 1] = d2q[1:] * x[1:, None] + dq[1:] * u[:, None]
+    qdd = d2q * (sdot * sdot)[:, None] + dq * sddot[:, None]
+    if jerk_rad_s3 is None:  # constant path acceleration per interval: both its ends
+        xx = sdot * sdot
+        ends = np.empty((n_pts - 1, 2, n))
+        ends[:, 0] = d2q[:-1] * xx[:-1, None] + dq[:-1] * u[:, None]
+        ends[:, 1] = d2q[1:] * xx[1:, None] + dq[1:] * u[:, None]
+    else:  # continuous path acceleration: the points' own
+        ends = np.stack([qdd[:-1], qdd[1:]], axis=1)
+    tip_acc_m = tip.accel(sdot, sddot) if tip is not None else np.zeros(n_pts)
     return TimeLaw(t=t, s=np.asarray(s, dtype=np.float64), sdot=sdot, sddot=sddot, qd=qd,
                    qdd=qdd, qdd_ends=ends, stepped=stepped,
-                   solve_s=time.perf_counter() - t0)
+                   solve_s=time.perf_counter() - t0, tip_accel=tip_acc_m,
+                   window_s=max(windows, default=0.0), repairs=repairs)

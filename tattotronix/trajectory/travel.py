@@ -42,12 +42,15 @@ from tattotronix.trajectory.timelaw import JointLimits
 if TYPE_CHECKING:
     from tattotronix.collision.model import CollisionModel
 
-__all__ = ["JointMove", "MoveSamples", "TravelPlanner", "joint_move", "way_home"]
+__all__ = ["Blend", "JointMove", "MoveSamples", "TravelPlanner", "bezier5", "blend_controls",
+           "joint_move", "way_home"]
 
 Array = NDArray[np.float64]
 Z_TOL_M = 1e-5  # a hop may dip 10 um under the clearance height (IK lands within 1 um)
 _LOWEST_TOL_M = 1e-9  # "never lowers the pen": monotone to rounding
 _MIN_SAMPLES = 8
+_BLEND_PROBE = 2001  # curve points the arc length of a blend is measured on
+_BLEND_STEP_SHARE = 0.9  # blend samples sit this share of max_step_m apart (at most)
 _SAME_POSE_RAD = 1e-12  # poses closer than this (every joint) are the same pose
 
 
@@ -149,6 +152,26 @@ class MoveSamples:
     straight_m: float
 
 
+@dataclass(frozen=True)
+class Blend:
+    """A blended travel move, as geometry (the trajectory's one time law times it).
+
+    Attributes:
+        q: (m, n) joint angles from the move's first pose to its last, both included, the
+            tip about ``max_step_m`` apart, rad.
+        tcp: (m, 3) tip, m.
+        kind: ``hop``, ``from_home`` or ``to_home``.
+        reach_m: the tangent reach it was built with, m.
+        straight_m: straight tip distance between its ends, m.
+    """
+
+    q: Array
+    tcp: Array
+    kind: str
+    reach_m: float
+    straight_m: float
+
+
 class TravelPlanner:
     """Plans and checks the travel moves of one drawing (module docstring).
 
@@ -163,12 +186,15 @@ class TravelPlanner:
         lifts_m: how high to lift a failing move, m, in order.
         max_step_m: the longest tip step between samples, m.
         ik: keyword arguments for the lifts' IK.
+        reach_m: a blended move's first tangent reach (:meth:`blend`), m.
     """
 
     def __init__(self, chain: Chain, limits: JointLimits, collision: CollisionModel | None, *,
                  margin_m: float, resolution_m: float, clearance_z_m: float,
-                 lifts_m: list[float], max_step_m: float, ik: IkOptions | None = None):
+                 lifts_m: list[float], max_step_m: float, ik: IkOptions | None = None,
+                 reach_m: float = 0.004):
         self.chain, self.limits, self.collision = chain, limits, collision
+        self.reach_m = float(reach_m)
         self.margin_m, self.resolution_m = margin_m, resolution_m
         self.clearance_z_m = clearance_z_m
         self.lifts_m = [float(h) for h in lifts_m]
@@ -253,6 +279,53 @@ class TravelPlanner:
         return MoveSamples(law.t, qs, law.qd, law.qdd, tip, law.qdd_ends, "lift",
                            law.duration_s, law.duration_s, float(rise))
 
+    def sample_blend(self, ctrl: Array) -> tuple[Array, Array]:
+        """The curve of control points ``ctrl`` at tip steps of at most ``max_step_m``
+        (even in arc length): ``(q, tcp)``, both ends included and exact."""
+        u = np.linspace(0.0, 1.0, _BLEND_PROBE)
+        tip, _ = self.chain.fk(bezier5(ctrl, u))
+        arc = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(tip, axis=0), axis=1))))
+        n = max(int(math.ceil(arc[-1] / (self.max_step_m * _BLEND_STEP_SHARE))) + 1, 3)
+        uu = np.interp(np.linspace(0.0, arc[-1], n), arc, u)
+        q = bezier5(ctrl, uu)
+        q[0], q[-1] = ctrl[0], ctrl[-1]
+        tcp, _ = self.chain.fk(q)
+        return q, tcp
+
+    def blend(self, q_a: ArrayLike, d_a: ArrayLike, q_b: ArrayLike, d_b: ArrayLike,
+              kind: str, where: str) -> Blend:
+        """The blended move from ``q_a`` (leaving along ``d_a``) to ``q_b`` (arriving
+        against ``d_b``), checked as :meth:`problems` checks a move: the shortest reach
+        that passes, from :attr:`reach_m` up through ``lifts_m``.
+
+        Args:
+            q_a, q_b: the end poses, rad.
+            d_a, d_b: the tangents there, rad per metre of tip travel, pointing away from
+                the ink (up the needle); zero at a rest (home).
+            kind: ``hop``, ``from_home`` or ``to_home``.
+            where: names the move in a refusal.
+
+        Raises:
+            TattotronixError: no reach makes it acceptable.
+        """
+        qa, qb = np.asarray(q_a, dtype=np.float64), np.asarray(q_b, dtype=np.float64)
+        da, db = np.asarray(d_a, dtype=np.float64), np.asarray(d_b, dtype=np.float64)
+        straight = float(np.linalg.norm(self.chain.fk(qb[None, :])[0][0]
+                                        - self.chain.fk(qa[None, :])[0][0]))
+        why = ""
+        for reach in [self.reach_m, *[h for h in self.lifts_m if h > self.reach_m]]:
+            q, tcp = self.sample_blend(blend_controls(qa, da, qb, db, reach))
+            samples = MoveSamples(np.arange(len(q), dtype=np.float64), q, q, q, tcp,
+                                  np.zeros((0, 2, q.shape[1])), kind, 0.0, 0.0, straight)
+            why = self.problems(samples)
+            if not why:
+                return Blend(q, tcp, kind, reach, straight)
+        raise TattotronixError(
+            f"no safe travel for {where}: {why}; reaches of "
+            f"{', '.join(f'{h * 1000:g}' for h in [self.reach_m, *self.lifts_m])} mm did "
+            "not help (this move needs a sampling planner; move the drawing or the home "
+            "pose)")
+
     def plan(self, q_a: ArrayLike, q_b: ArrayLike, kind: str, where: str) -> list[MoveSamples]:
         """The moves from ``q_a`` to ``q_b`` (one, or three with a lift), checked.
 
@@ -287,6 +360,29 @@ class TravelPlanner:
             f"no safe travel for {where}: {why}; lifts of "
             f"{', '.join(f'{h * 1000:g}' for h in self.lifts_m)} mm did not help (this move "
             "needs a sampling planner; move the drawing or the home pose)")
+
+
+def bezier5(ctrl: Array, u: Array) -> Array:
+    """Points of the quintic Bezier curve with control points ``ctrl`` (6, n) at ``u``."""
+    uu = np.asarray(u, dtype=np.float64)[:, None]
+    coef = (1.0, 5.0, 10.0, 10.0, 5.0, 1.0)
+    out = np.zeros((len(uu), ctrl.shape[1]))
+    for k, c in enumerate(coef):
+        out += c * uu**k * (1.0 - uu) ** (5 - k) * ctrl[k]
+    return out
+
+
+def blend_controls(q0: Array, d0: Array, q1: Array, d1: Array, reach: float) -> Array:
+    """The quintic's control points (6, n) from ``q0`` leaving along ``d0`` to ``q1``
+    arriving against ``d1`` (both rad per metre of tip travel; zero for a rest).
+
+    Three control points on each end's tangent line (``q0``, ``q0 + r d0``, ``q0 + 2r
+    d0``, with ``r = reach / 2``) make the curve leave along the tangent with no
+    curvature: it continues the straight line it meets (the needle's own axis) to second
+    order, so the joint acceleration stays continuous there.
+    """
+    r = reach / 2.0
+    return np.stack([q0, q0 + r * d0, q0 + 2 * r * d0, q1 + 2 * r * d1, q1 + r * d1, q1])
 
 
 def way_home(planner: TravelPlanner, q: ArrayLike, home: ArrayLike) -> list[MoveSamples]:
