@@ -67,6 +67,7 @@ _WIDEN = 1.5  # how much it widens
 _MIN_WINDOW_S = 1e-3  # the shortest filter window, s
 _REPAIR_MARGIN = 0.9  # a repaired cap sits this far under the speed^2 that fits
 _MIN_CAP = 1e-12  # (m/s)^2: a repaired cap never reaches zero inside the path
+_FEED_TOL = 1.0 + 1e-9  # a filtered speed may sit this far over the feed (rounding)
 _REPAIR_REACH = 1.5  # windows either side of a point whose caps a repair lowers
 
 
@@ -295,8 +296,11 @@ class TipLimit:
         alpha = np.einsum("ij,ij->i", self.d2p, unit)
         beta = np.linalg.norm(self.d2p - alpha[:, None] * unit, axis=1)
         theta = np.arange(_TIP_DIRS) * (math.pi / _TIP_DIRS)
-        dg = c[:, None] * np.cos(theta)
-        d2g = alpha[:, None] * np.cos(theta) + beta[:, None] * np.sin(theta)
+        # exact zeros where a direction is normal to the tangent (cos(pi/2) is 6e-17,
+        # and a bound divided by it cancels to noise)
+        cos = np.where(np.abs(np.cos(theta)) < 1e-12, 0.0, np.cos(theta))
+        dg = c[:, None] * cos
+        d2g = alpha[:, None] * cos + beta[:, None] * np.sin(theta)
         return dg, d2g
 
 
@@ -349,7 +353,10 @@ def _box_filter_law(t: Array, s: Array, v: Array, u: Array, window: float
     tf[0], tf[-1] = -half, t_end + half
     pp, vp, _ = at(tf + half)
     pm, vm, _ = at(tf - half)
-    return tf + half, (pp - pm) / window, (vp - vm) / window
+    sdot_f, sddot_f = (pp - pm) / window, (vp - vm) / window
+    sdot_f[[0, -1]] = 0.0  # at rest (the window's mean is 0 there, to rounding)
+    sddot_f[[0, -1]] = 0.0
+    return tf + half, sdot_f, sddot_f
 
 
 @dataclass(frozen=True)
@@ -377,7 +384,7 @@ def _caps(s: Array, ch: _Channels, sdot_cap: Array, n_joints: int,
     acc_pt = np.full(ch.dq.shape, np.inf)
     acc_pt[:-1] = ch.acc
     acc_pt[1:] = np.minimum(acc_pt[1:], ch.acc)
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         v_cap = np.min(ch.vel / np.abs(ch.dq), axis=1) ** 2  # inf where no joint moves
         a_cap = np.nan_to_num(np.min(acc_pt / np.abs(ch.d2q), axis=1), nan=np.inf)
         chord = np.nan_to_num(np.min(ch.acc / np.abs(np.diff(ch.dq, axis=0) / h[:, None]),
@@ -433,13 +440,17 @@ def _law_of(x: Array, h: Array) -> tuple[Array, Array, Array, Array]:
     return t, sdot, sddot, u
 
 
-def _slowdown(t: Array, sdot: Array, sddot: Array, dq: Array, d2q: Array,
+def _slowdown(t: Array, sdot: Array, sddot: Array, dq: Array, d2q: Array, feed: Array,
               limits: JointLimits, tip: TipLimit | None, jerk: float
               ) -> tuple[Array, bool] | None:
     """Where the filtered law exceeds a limit at a sample: ``(need, jerk_exceeded)`` with
     ``need`` (N,) the factor each point's squared speed must shrink by (1 where it keeps
-    every limit), or ``None`` when every sample keeps every limit. Velocity scales with
-    ``sdot``, acceleration with ``sdot^2`` and jerk with ``sdot^3``."""
+    every limit), or ``None`` when every sample keeps every limit. The feed (``feed``,
+    the squared path-speed cap) and velocity scale with ``sdot``, acceleration with
+    ``sdot^2`` and jerk with ``sdot^3``."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # (the filter's mean of a speed held at the feed is the feed, to rounding)
+        rf = np.nan_to_num(sdot * sdot / (feed * _FEED_TOL), nan=0.0, posinf=np.inf)
     qd = dq * sdot[:, None]
     qdd = d2q * (sdot * sdot)[:, None] + dq * sddot[:, None]
     jk = np.abs(np.diff(qdd, axis=0) / np.diff(t)[:, None]).max(axis=1) / jerk
@@ -451,10 +462,11 @@ def _slowdown(t: Array, sdot: Array, sddot: Array, dq: Array, d2q: Array,
     rj = np.zeros(len(t))
     rj[:-1] = jk
     rj[1:] = np.maximum(rj[1:], jk)
-    if rv.max() <= 1.0 and ra.max() <= 1.0 and rj.max() <= 1.0:
+    if rv.max() <= 1.0 and ra.max() <= 1.0 and rj.max() <= 1.0 and rf.max() <= 1.0:
         return None
     with np.errstate(divide="ignore"):
         need = np.minimum(np.minimum(1.0 / rv**2, 1.0 / ra), rj ** (-2.0 / 3.0))
+        need = np.minimum(need, 1.0 / rf)
     return np.minimum(need, 1.0), bool(rj.max() > 1.0)
 
 
@@ -467,8 +479,9 @@ def _lower_caps(cap: Array, t: Array, sdot: Array, need: Array,
     bad = np.flatnonzero(need < 1.0)
     target = sdot[bad] ** 2 * need[bad] * _REPAIR_MARGIN ** (1 + strikes[bad])
     reach = _REPAIR_REACH * window
-    lo = np.searchsorted(t, t[bad] - reach)
-    hi = np.searchsorted(t, t[bad] + reach, side="right")
+    # at least the point's neighbours: the window's mean there is made of them
+    lo = np.minimum(np.searchsorted(t, t[bad] - reach), np.maximum(bad - 1, 0))
+    hi = np.maximum(np.searchsorted(t, t[bad] + reach, side="right"), bad + 2)
     for a, b, v in zip(lo, hi, target, strict=True):
         np.minimum(out[a:b], v, out=out[a:b])
     out[1:-1] = np.maximum(out[1:-1], _MIN_CAP)
@@ -488,7 +501,7 @@ class _Piece:
     stepped: int
 
 
-def _jerk_piece(s: Array, ch: _Channels, cap: Array, dq: Array, d2q: Array,
+def _jerk_piece(s: Array, ch: _Channels, cap: Array, feed: Array, dq: Array, d2q: Array,
                 limits: JointLimits, tip: TipLimit | None, jerk: float) -> _Piece:
     """The jerk-limited law of one rest-to-rest stretch: the time-optimal law under
     ``cap``, filtered by a window of ``2 a_path / J`` (times :data:`_WINDOW_MARGIN`) with
@@ -508,7 +521,7 @@ def _jerk_piece(s: Array, ch: _Channels, cap: Array, dq: Array, d2q: Array,
     since_widen = 0
     for repairs in range(_MAX_REPAIRS + 1):
         tf, sdf, sddf = _box_filter_law(t, s, sdot, u, window)
-        found = _slowdown(tf, sdf, sddf, dq, d2q, limits, tip, jerk)
+        found = _slowdown(tf, sdf, sddf, dq, d2q, feed, limits, tip, jerk)
         if found is None:
             return _Piece(tf, sdf, sddf, window, repairs, stepped)
         need, jerk_exceeded = found
@@ -596,6 +609,7 @@ def time_parameterise(s: Array, dq: Array, d2q: Array, sdot_cap: Array,
         raise TattotronixError(f"the path speed cap is zero at point {i}: a feed of 0")
     x, stepped = _topp(cap, s, ch)
     t, sdot, sddot, u = _law_of(x, h)
+    feed = np.asarray(sdot_cap, dtype=np.float64) ** 2
     windows: list[float] = []
     repairs = 0
     if jerk_rad_s3 is not None:
@@ -606,7 +620,8 @@ def time_parameterise(s: Array, dq: Array, d2q: Array, sdot_cap: Array,
         clock = 0.0
         for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
             part = slice(int(lo), int(hi) + 1)
-            piece = _jerk_piece(s[part], ch.slice(part), cap[part], dq[part], d2q[part],
+            piece = _jerk_piece(s[part], ch.slice(part), cap[part], feed[part], dq[part],
+                                d2q[part],
                                 limits, tip.slice(part) if tip is not None else None,
                                 jerk_rad_s3)
             t_parts.append(clock + piece.t[1:])
