@@ -16,17 +16,16 @@ What :func:`plan_trajectory` does (``stages/trajectory.py`` calls it):
    inside the limits: ``|dq/ds| F S <= v`` and ``|d2q/ds2| (F S)^2 <= a``. If not, the
    plan is refused (:class:`SpeedRefused`) naming the joint, the rate needed and the
    fastest speed, ``floor(100 S_max) / 100``, as the original's ``plan.py`` did.
-4. **Time law** (:func:`~tattotronix.trajectory.timelaw.time_parameterise`): the fastest
-   rest-to-rest law under the caps, the joint velocity limits and the per-joint
-   acceleration limit (at both ends of every interval and over the interval), so
-   velocity is continuous (a step between samples is at most ``a dt``) and travel
-   goes as fast as the limits allow. With ``travel="planned"`` the path is cut at the
-   hops between strokes (never densified) and the law times each ink piece, rest to
-   rest.
-5. **Planned travel** (``travel="planned"``, :mod:`~tattotronix.trajectory.travel`): the
-   move from home, each hop and the way home are time-optimal joint-space moves, checked
-   for collision and clearance by the :class:`~.travel.TravelPlanner`, and spliced
-   between the pieces (the join keeps the piece's point).
+4. **Blended travel** (``travel="planned"``, :mod:`~tattotronix.trajectory.travel`): the
+   hops between strokes are never densified; each, and the moves from and to home, is
+   replaced by one blended move (:meth:`~.travel.TravelPlanner.blend`: a quintic curve
+   in joint space that continues the needle's vertical line at both ends), checked for
+   collision and clearance. Blended moves have no feed cap: the joint limits bind.
+5. **Time law** (:func:`~tattotronix.trajectory.timelaw.time_parameterise`): one law for
+   the whole drawing, rest to rest, under the caps, the joints' velocity, acceleration
+   and jerk limits and the tip's acceleration limit on marking and approach segments
+   (docs/timelaw.md). With a jerk limit the needle also rests where it leaves the ink and
+   where each approach begins.
 
 Units: SI inside (m, rad, s); mm only in names that say so.
 """
@@ -531,7 +530,7 @@ def _time_path(path: JointPath, params: TrajectoryParams, limits: JointLimits,
     rests = _travel_ends(seg) if params.jerk_rad_s3 is not None else None
     law = time_parameterise(s, dq, d2q, caps, limits, tip=tip,
                             jerk_rad_s3=params.jerk_rad_s3, rests=rests)
-    law.check(limits)
+    law.check(limits, jerk_rad_s3=params.jerk_rad_s3, tip=tip)
     return law
 
 

@@ -1,4 +1,5 @@
-"""Time-optimal path speed under joint velocity and acceleration limits (discrete TOPP).
+"""Path speed under joint velocity, acceleration and jerk limits and the tip's
+acceleration limit (discrete TOPP, then a jerk filter; docs/timelaw.md).
 
 The path is fixed: joint angles ``q_i`` at arc lengths ``s_i`` (the tip's, m). The unknown
 is the squared path speed ``x_i = sdot_i^2`` at every point, with the path acceleration
@@ -37,6 +38,13 @@ Velocity and acceleration are then within the limits at every point, to rounding
 (checked, :meth:`TimeLaw.check`). Accelerations are per interval end; the reported
 ``qdd`` at a point is the mean of the two interval ends meeting there (a convex mix, so
 within the limits too).
+
+The tip's acceleration limit (:class:`TipLimit`) enters the same passes as eight virtual
+joints (:meth:`TipLimit.channels`). A jerk limit (``jerk_rad_s3``) caps the speed where the
+path's own third derivative is large, then filters each stretch between rests with a
+moving average in time (:func:`_box_filter_law`) and repairs the samples that still
+exceed a limit (:func:`_jerk_piece`); the filtered law keeps every limit, the feed
+included, at every sample, with continuous acceleration.
 """
 
 from __future__ import annotations
@@ -148,14 +156,25 @@ class TimeLaw:
         """Total time, s."""
         return float(self.t[-1]) if len(self.t) else 0.0
 
-    def check(self, limits: JointLimits, rel_tol: float = 1e-6) -> None:
-        """Raise ``AssertionError`` when a velocity or acceleration exceeds its limit."""
+    def check(self, limits: JointLimits, rel_tol: float = 1e-6, *,
+              jerk_rad_s3: float | None = None, tip: TipLimit | None = None) -> None:
+        """Raise ``AssertionError`` when a velocity, an acceleration, a jerk (with a jerk
+        limit) or the tip's acceleration (with a tip limit) exceeds its limit."""
         v = np.abs(self.qd).max(axis=0) / limits.velocity if len(self.qd) else 0.0
         a = (np.abs(self.qdd_ends).max(axis=(0, 1)) / limits.acceleration
              if len(self.qdd_ends) else 0.0)
-        if np.any(v > 1 + rel_tol) or np.any(a > 1 + rel_tol):
+        j = 0.0
+        if jerk_rad_s3 is not None and len(self.t) > 1:
+            j = float(np.abs(np.diff(self.qdd, axis=0) / np.diff(self.t)[:, None]).max()
+                      / jerk_rad_s3)
+        w = 0.0
+        if tip is not None and jerk_rad_s3 is not None and tip.points().any():
+            w = float(self.tip_accel[tip.points()].max() / tip.accel_m_s2)
+        if (np.any(v > 1 + rel_tol) or np.any(a > 1 + rel_tol) or j > 1 + rel_tol
+                or w > 1 + rel_tol):
             raise AssertionError(f"time law out of limits: velocity/limit {v}, "
-                                 f"acceleration/limit {a}")
+                                 f"acceleration/limit {a}, jerk/limit {j:.6g}, tip "
+                                 f"acceleration/limit {w:.6g}")
 
 
 def _rows(dq: Array, d2q: Array, h: Array) -> tuple[Array, Array]:

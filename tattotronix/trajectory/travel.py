@@ -1,27 +1,31 @@
-"""Planned travel: time-optimal joint-space moves between strokes, from home and home again.
+"""Travel: blended moves between strokes, from home and home again; the way home.
 
 A drawing's path alternates *ink pieces* (from the clearance point above a stroke's start,
 down through the approach, the strokes and drags, and up to clearance again) and *hops*
 (clearance to clearance, needle up). With ``trajectory.travel=planned`` each hop, the move
-from the home pose to the first clearance point and the way home from the last are planned
-here instead of being timed as straight tip lines:
+from the home pose to the first clearance point and the way home from the last are
+planned here instead of being timed as straight tip lines:
 
-* **The move** (:func:`joint_move`) is the straight joint-space line, timed by one
-  trapezoidal profile shared by every joint (phase-synchronised): the joint with the most
-  to travel relative to its limits sets it. Every joint must cover its own ``|dq_j|``
-  under ``v_j`` and ``a_j``, which takes at least ``T_j`` (its own trapezoid), so no move
-  between two rests can beat ``max_j T_j``; with the same limits on every joint, as here,
-  the synchronised line reaches that bound exactly (:attr:`JointMove.lower_bound_s`).
-* **The checks** (:class:`TravelPlanner`): every sample and the motion between samples is
-  collision-free with ``collision.margin_mm`` (:func:`~tattotronix.collision.check.
-  check_trajectory`); a hop never brings the needle below the clearance height; the move
-  from home never raises, and the way home never lowers, the lowest point of the pen.
-* **When a move fails** it is retried higher: the needle is first lifted straight up its
-  axis by ``trajectory.lifts_mm`` (10, 20, 40, 80 mm), and the move runs between the
-  lifted poses. If no lift helps the plan is refused, naming the move: that drawing would
-  need a sampling planner, which no drawing on the panel has needed.
-* :func:`way_home` is the same way home from any pose over the panel, even with the needle
-  in the work: straight up the needle to clearance, then the planned move home.
+* **The blend** (:meth:`TravelPlanner.blend`): a quintic Bezier curve in joint space
+  between the two clearance points whose first three and last three control points lie
+  on the needle's vertical line in joint space (:func:`blend_controls`), so it continues
+  that line with the same tangent and no curvature: the needle rises up its axis out of
+  the ink, runs over and lands down its axis without stopping, and the joint
+  acceleration stays continuous. From home and to home the home end is a rest. The
+  trajectory's one time law times it (:mod:`~tattotronix.trajectory.plan`).
+* **The checks** (:meth:`TravelPlanner.problems`): every sample and the motion between
+  samples is collision-free with ``collision.margin_mm`` (:func:`~tattotronix.collision.
+  check.check_trajectory`); a hop never brings the needle below the clearance height; the
+  move from home never raises, and the way home never lowers, the lowest point of the pen.
+* **When a move fails** it is retried with a longer reach (``trajectory.lifts_mm``: 10,
+  20, 40, 80 mm), higher over the panel. If none helps the plan is refused, naming the
+  move: that drawing would need a sampling planner, which no drawing on the panel has
+  needed.
+* :func:`way_home` is the arm's way home from any pose over the panel, even with the
+  needle in the work (after a hang-up or a crash): straight up the needle to clearance,
+  then a rest-to-rest straight joint-space move home (:func:`joint_move`: one trapezoidal
+  profile shared by every joint, the least time any rest-to-rest move can take), checked
+  the same way and lifted by ``trajectory.lifts_mm`` when it fails.
 
 Units: m, rad, s.
 """
