@@ -16,7 +16,7 @@ import yaml
 from tattotronix.config.params import compose
 from tattotronix.io.outputs import Outputs
 from tattotronix.path.polyline import resample
-from tattotronix.studies.base import load_cases
+from tattotronix.studies.base import int_label, load_cases
 from tattotronix.studies.registry import STUDIES
 from tattotronix.studies.resample import chord_error_mm
 
@@ -215,9 +215,26 @@ def test_every_configured_case_has_stored_metrics() -> None:
         "approach": {f"{v}mm" for v in params["approach_mm"]},
         "resample": {f"{v}mm" for v in params["step_mm"]},
         "rate": {f"{r}hz-wn{w}" for r in params["rate_hz"] for w in params["rate_wn"]},
+        "timelaw": {f"tip{a}-jerk{j}" for a in params["timelaw_tip_mm_s2"]
+                    for j in params["timelaw_jerk_rad_s3"]},
     }
     for study in STUDIES:
         assert set(_stored(study)) == expect[study], study
+
+
+def test_the_default_time_law_limits_are_the_fastest_that_meet_every_goal() -> None:
+    """docs/timelaw.md: the defaults are the time-law study's pick, which meets the
+    accuracy goals over the whole emblem with the default controller."""
+    case = _stored("timelaw")  # skips without stored metrics
+    summary = json.loads((ROOT / "data" / "metrics" / "studies" / "emblem.json").read_text())
+    tr = yaml.safe_load((ROOT / "params.yaml").read_text())["trajectory"]
+    default = f"tip{int_label(tr['tip_accel_mm_s2'])}-jerk{int_label(tr['jerk_rad_s3'])}"
+    assert summary["timelaw"]["fastest_meeting_goals"] == default
+    whole = case[default]["whole"]
+    assert isinstance(whole, dict)
+    assert whole["marking_max_um"] < 20.0
+    assert whole["settled_mean_um"] <= 2.0
+    assert whole["travel_mean_um"] < 20.0
 
 
 def test_the_nine_rate_verdicts_agree_with_the_computed_boundary() -> None:

@@ -790,10 +790,10 @@ class StudyConfig:
     # the rate study's plant step (4 kHz)
     rate_plant_dt_s: float = bounded(0.00025, lo=MIN_DT_S, hi=0.1, unit="s")
     # the time-law study: trajectory.tip_accel_mm_s2 x trajectory.jerk_rad_s3
-    timelaw_tip_mm_s2: list[float] = bounded(factory=lambda: [100.0, 200.0, 400.0], lo=0,
-                                             lo_open=True, hi=1e6, unit="mm/s^2")
-    timelaw_jerk_rad_s3: list[float] = bounded(factory=lambda: [500.0, 2000.0], lo=0,
-                                               lo_open=True, hi=1e6, unit="rad/s^3")
+    timelaw_tip_mm_s2: list[int] = bounded(factory=lambda: [100, 200, 400], lo=1,
+                                           hi=1_000_000, unit="mm/s^2")
+    timelaw_jerk_rad_s3: list[int] = bounded(factory=lambda: [500, 2000], lo=1,
+                                             hi=1_000_000, unit="rad/s^3")
     actuator: ActuatorStudyConfig = field(default_factory=ActuatorStudyConfig)
 
 
