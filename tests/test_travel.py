@@ -519,3 +519,30 @@ def test_with_the_needle_down_no_hop_over_the_panel_dips(chain: Chain,
             if i != j:
                 moves = planner.plan(qa, qb, "hop", f"hop {i} -> {j}")
                 assert len(moves) == 1 and moves[0].tcp[:, 2].min() >= clear - CLEAR_TOL
+
+
+def test_the_tip_never_leaves_the_marking_path(planned: Trajectory, chain: Chain) -> None:
+    """While marking, the samples are the IK path's own points (at the marking depth) and
+    the reference between two of them (the controller's C1 Hermite in joint space, at
+    the time law's rates) keeps the tip near the chord between them: within a micrometre
+    on most chords (on a curved stroke the reference follows the curve the points lie on,
+    a sagitta off the chord), and within a tenth of the point step where the path turns a
+    corner at a point (the Hermite's tangent there is the mean of the two chords', so it
+    rounds the corner a little; measured up to 11 um at 0.15 mm steps)."""
+    from scipy.interpolate import CubicHermiteSpline
+
+    step = compose_settings(SMALL).toolpath.step_mm / 1000  # the toolpath's point step, m
+    mark = np.flatnonzero(planned.marked)  # samples ending a marking segment
+    assert len(mark) > 100
+    depth = planned.tcp[planned.kind == 1, 2]
+    assert np.ptp(depth) <= IK_TOL  # one marking depth
+    spline = CubicHermiteSpline(planned.t, planned.q, planned.qd, axis=0)
+    a, b = planned.tcp[mark - 1], planned.tcp[mark]
+    for frac in (0.25, 0.5, 0.75):
+        tm = planned.t[mark - 1] + frac * (planned.t[mark] - planned.t[mark - 1])
+        tip, _ = chain.fk(spline(tm))
+        d = b - a
+        u = np.clip(np.einsum("ij,ij->i", tip - a, d) / np.einsum("ij,ij->i", d, d), 0, 1)
+        off = np.linalg.norm(tip - (a + u[:, None] * d), axis=1)
+        assert np.median(off) <= 1e-6, frac
+        assert off.max() <= 0.1 * step, (frac, float(off.max()))
