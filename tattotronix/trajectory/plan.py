@@ -56,7 +56,13 @@ from tattotronix.trajectory.path import (
     segment_kinds,
     turn_radii,
 )
-from tattotronix.trajectory.timelaw import JointLimits, TimeLaw, TipLimit, time_parameterise
+from tattotronix.trajectory.timelaw import (
+    JointLimits,
+    TimeLaw,
+    TipLimit,
+    sample_jerk,
+    time_parameterise,
+)
 from tattotronix.trajectory.travel import Blend, TravelPlanner
 
 __all__ = [
@@ -452,8 +458,7 @@ class Trajectory:
             "peak_tip_speed_mm_s": float(self.tip_speed.max()) * 1000.0,
             "timelaw_stepped_points": self.law.stepped,
             "jerk_limit_rad_s3": self.params.jerk_rad_s3,
-            "peak_jerk_rad_s3_max": float(np.abs(np.diff(self.qdd, axis=0)
-                                                 / dt[:, None]).max()) if len(dt) else 0.0,
+            "peak_jerk_rad_s3_max": float(sample_jerk(self.t, self.qdd).max(initial=0.0)),
             "jerk_window_s_max": self.law.window_s,
             "timelaw_repairs": self.law.repairs,
             "tip_accel_limit_mm_s2": None if self.params.tip_accel_m_s2 is None
@@ -510,14 +515,18 @@ def load_trajectory(file: str | Path) -> StoredTrajectory:
 
 
 def _time_path(path: JointPath, params: TrajectoryParams, limits: JointLimits,
-               free: NDArray[np.bool_] | None = None) -> TimeLaw:
+               free: NDArray[np.bool_] | None = None,
+               derivatives: tuple[Array, Array, Array] | None = None) -> TimeLaw:
     """The one time law of a whole drawing: the feeds (none on ``free`` segments: the
     blended moves, bound by the joint limits alone), the joint limits, the tip's
     acceleration while marking and on the approach, and the jerk limit; at rest at both
     ends (and, with a jerk limit, where the needle leaves the ink and where each approach
-    begins)."""
-    s = path.arc_length()
-    dq, d2q = path_derivatives(path.q, s)
+    begins). ``derivatives``: ``(s, dq, d2q)`` of ``path`` when the caller has them."""
+    if derivatives is None:
+        s = path.arc_length()
+        dq, d2q = path_derivatives(path.q, s)
+    else:
+        s, dq, d2q = derivatives
     seg = path.segment_kinds()
     caps = _caps(seg, len(path), params.feed_mark_m_s * params.speed,
                  params.travel_feed_m_s * params.speed, free)
@@ -548,7 +557,7 @@ def _travel_ends(seg: NDArray[np.int8]) -> NDArray[np.int64]:
 def _up_tangent(path: JointPath, i: int, j: int) -> Array:
     """``dq/ds`` at point ``i`` pointing away from its neighbour ``j`` (rad per metre of
     tip travel): up the needle at a clearance point whose neighbour is below it."""
-    if not 0 <= j < len(path):
+    if not 0 <= j < len(path):  # no such neighbour: a rest (home, or a waypoint)
         return np.zeros(path.q.shape[1])
     ds = float(np.linalg.norm(path.tcp[i] - path.tcp[j]))
     return (path.q[i] - path.q[j]) / ds if ds > 0 else np.zeros(path.q.shape[1])
@@ -607,6 +616,7 @@ def _blended(dense: JointPath, planner: TravelPlanner, params: TrajectoryParams,
     blended move (:meth:`~.travel.TravelPlanner.blend`)."""
     n = len(dense)
     cut = np.flatnonzero(dense.hops(params.clearance_mm))
+    hop_starts = set(cut.tolist())
     asm = _Assembly(dense, origin)
     home = np.asarray(params.home, dtype=np.float64)
     if home.shape != (dense.q.shape[1],):
@@ -623,11 +633,11 @@ def _blended(dense: JointPath, planner: TravelPlanner, params: TrajectoryParams,
         a, b = int(i), int(i) + 1
         where = (f"the travel from panel ({dense.uvz_mm[a, 0]:.1f}, {dense.uvz_mm[a, 1]:.1f}) "
                  f"to ({dense.uvz_mm[b, 0]:.1f}, {dense.uvz_mm[b, 1]:.1f}) mm")
-        up_a = _up_tangent(dense, a, a - 1) if a - 1 not in cut else np.zeros(0)
-        up_b = _up_tangent(dense, b, b + 1) if b not in cut else np.zeros(0)
-        zero = np.zeros(dense.q.shape[1])
-        asm.add_blend(planner.blend(dense.q[a], up_a if up_a.size else zero, dense.q[b],
-                                    up_b if up_b.size else zero, "hop", where), False, False)
+        # a clearance point between two hops is a waypoint: the moves rest there
+        up_a = _up_tangent(dense, a, a - 1 if a - 1 not in hop_starts else -1)
+        up_b = _up_tangent(dense, b, b + 1 if b not in hop_starts else -1)
+        asm.add_blend(planner.blend(dense.q[a], up_a, dense.q[b], up_b, "hop", where),
+                      False, False)
         start = b
     asm.add_path(start, n)
     if params.from_home:
@@ -693,7 +703,8 @@ def plan_trajectory(path: JointPath, chain: Chain, limits: JointLimits,
         whole, free = asm.result()
         moves = asm.moves
     t3 = time.perf_counter()
-    law = _time_path(whole, params, limits, free)
+    law = _time_path(whole, params, limits, free,
+                     None if planned else (s_all, dq, d2q))  # straight: the dense path
     t4 = time.perf_counter()
     summaries = tuple(MoveSummary(kind, float(law.t[a]), float(law.t[b] - law.t[a]),
                                   straight, reach)

@@ -59,7 +59,7 @@ from numpy.typing import ArrayLike, NDArray
 from tattotronix.errors import TattotronixError
 from tattotronix.robot.description import RobotDescription
 
-__all__ = ["JointLimits", "TimeLaw", "TipLimit", "time_parameterise"]
+__all__ = ["JointLimits", "TimeLaw", "TipLimit", "sample_jerk", "time_parameterise"]
 
 Array = NDArray[np.float64]
 _MAX_PASSES = 50  # forward/backward repeats before giving up (one on real paths)
@@ -164,9 +164,8 @@ class TimeLaw:
         a = (np.abs(self.qdd_ends).max(axis=(0, 1)) / limits.acceleration
              if len(self.qdd_ends) else 0.0)
         j = 0.0
-        if jerk_rad_s3 is not None and len(self.t) > 1:
-            j = float(np.abs(np.diff(self.qdd, axis=0) / np.diff(self.t)[:, None]).max()
-                      / jerk_rad_s3)
+        if jerk_rad_s3 is not None:
+            j = float(sample_jerk(self.t, self.qdd).max(initial=0.0)) / jerk_rad_s3
         w = 0.0
         if tip is not None and jerk_rad_s3 is not None and tip.points().any():
             w = float(self.tip_accel[tip.points()].max() / tip.accel_m_s2)
@@ -175,6 +174,12 @@ class TimeLaw:
             raise AssertionError(f"time law out of limits: velocity/limit {v}, "
                                  f"acceleration/limit {a}, jerk/limit {j:.6g}, tip "
                                  f"acceleration/limit {w:.6g}")
+
+
+def sample_jerk(t: Array, qdd: Array) -> Array:
+    """(N-1, n) the jerk at the samples: the change of acceleration from one sample to
+    the next over their time, rad/s^3 (what the jerk limit holds)."""
+    return np.asarray(np.abs(np.diff(qdd, axis=0)) / np.diff(t)[:, None])
 
 
 def _rows(dq: Array, d2q: Array, h: Array) -> tuple[Array, Array]:
@@ -472,7 +477,7 @@ def _slowdown(t: Array, sdot: Array, sddot: Array, dq: Array, d2q: Array, feed: 
         rf = np.nan_to_num(sdot * sdot / (feed * _FEED_TOL), nan=0.0, posinf=np.inf)
     qd = dq * sdot[:, None]
     qdd = d2q * (sdot * sdot)[:, None] + dq * sddot[:, None]
-    jk = np.abs(np.diff(qdd, axis=0) / np.diff(t)[:, None]).max(axis=1) / jerk
+    jk = sample_jerk(t, qdd).max(axis=1) / jerk
     rv = (np.abs(qd) / limits.velocity).max(axis=1)
     ra = (np.abs(qdd) / limits.acceleration).max(axis=1)
     if tip is not None:

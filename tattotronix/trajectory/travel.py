@@ -227,23 +227,27 @@ class TravelPlanner:
     # ------------------------------------------------------------------ checks
     def problems(self, s: MoveSamples) -> str:
         """Why a sampled move is not acceptable ("" when it is)."""
-        if s.kind in ("hop", "lift"):
-            low = float(s.tcp[:, 2].min())
+        return self._problems(s.kind, s.t, s.q, s.tcp)
+
+    def _problems(self, kind: str, t: Array, q: Array, tcp: Array) -> str:
+        """Why a move of poses ``q`` (tips ``tcp``, at times ``t``) is not acceptable."""
+        if kind in ("hop", "lift"):
+            low = float(tcp[:, 2].min())
             if low < self.clearance_z_m - Z_TOL_M:
                 return (f"the needle dips {1000 * (self.clearance_z_m - low):.3f} mm below the "
                         "clearance height")
-        if s.kind in ("from_home", "to_home") and self.collision is not None and len(s.t) > 1:
-            lowest = self.collision.pen_lowest_z(s.q)
-            step = np.diff(lowest) if s.kind == "to_home" else -np.diff(lowest)
+        if kind in ("from_home", "to_home") and self.collision is not None and len(t) > 1:
+            lowest = self.collision.pen_lowest_z(q)
+            step = np.diff(lowest) if kind == "to_home" else -np.diff(lowest)
             if step.min() < -_LOWEST_TOL_M:
-                what = "lowers" if s.kind == "to_home" else "raises then lowers"
+                what = "lowers" if kind == "to_home" else "raises then lowers"
                 return f"the move {what} the pen by {-1000 * step.min():.3f} mm"
             if lowest.min() < self.clearance_z_m - Z_TOL_M:
                 return "the pen goes below the clearance height"
         if self.collision is not None:
             from tattotronix.collision.check import check_trajectory
 
-            rep = check_trajectory(self.collision, s.t, s.q, margin_m=self.margin_m,
+            rep = check_trajectory(self.collision, t, q, margin_m=self.margin_m,
                                    plunge_m=math.inf, resolution_m=self.resolution_m)
             if rep.events:
                 return rep.message()
@@ -319,9 +323,8 @@ class TravelPlanner:
         why = ""
         for reach in [self.reach_m, *[h for h in self.lifts_m if h > self.reach_m]]:
             q, tcp = self.sample_blend(blend_controls(qa, da, qb, db, reach))
-            samples = MoveSamples(np.arange(len(q), dtype=np.float64), q, q, q, tcp,
-                                  np.zeros((0, 2, q.shape[1])), kind, 0.0, 0.0, straight)
-            why = self.problems(samples)
+            # a geometric check: the sample index stands in for time in a refusal
+            why = self._problems(kind, np.arange(len(q), dtype=np.float64), q, tcp)
             if not why:
                 return Blend(q, tcp, kind, reach, straight)
         raise TattotronixError(
