@@ -30,6 +30,29 @@ def test_dvc_yaml_code_deps_are_the_imports_of_each_stage() -> None:
                           + "\nfix: python -m tattotronix.devtools.codedeps --write")
 
 
+def test_every_stage_that_builds_the_robot_depends_on_its_settings() -> None:
+    """The robot stage publishes the robot settings (data/robot/config.json); every other
+    stage that builds the description depends on that file (or, for the robot and mass
+    stages, on the `robot` params), so a robot change reruns it."""
+    import yaml
+
+    stages = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]
+    builders = []
+    for name, stage in stages.items():
+        body = stage.get("do", stage)
+        deps = body.get("deps", [])
+        if "tattotronix/robot/description.py" not in deps and "tattotronix/robot" not in deps:
+            continue
+        builders.append(name)
+        if name in ("robot", "mass"):
+            assert "robot" in body.get("params", []), name
+        else:
+            assert "${paths.data}/robot/config.json" in deps, name
+            assert "robot" not in body.get("params", []), name  # held once, in that file
+    assert {"ik", "trajectory", "simulate", "control"} <= set(builders), builders
+    assert "${paths.data}/robot/config.json" in stages["robot"]["outs"]
+
+
 def test_every_package_data_file_is_a_dep_of_some_stage() -> None:
     """Non-Python files the library reads (the built-in artwork, the k-DOP table) count as
     code: a change to them must rerun the stages whose modules name them."""

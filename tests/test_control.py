@@ -16,7 +16,7 @@ from tattotronix.control.controller import Controller, Gains, structure_of
 from tattotronix.control.dynamics import Dynamics
 from tattotronix.control.ink import compare_ink, ink_grid, rasterise_ink
 from tattotronix.control.reference import Reference, reference_at_ticks, resolve_window
-from tattotronix.control.simulate import simulate, substeps_per_tick
+from tattotronix.control.simulate import Loop, Run, simulate, substeps_per_tick
 from tattotronix.control.tracking import busiest_window, entry_times, tracking_errors
 from tattotronix.errors import TattotronixError
 from tattotronix.kinematics import Chain
@@ -179,11 +179,12 @@ def _stretch(traj: Trajectory, length: float) -> tuple[float, float]:
 
 def _run(backend: str, traj: Trajectory, models: tuple[Path, Path], desc: RobotDescription,
          dyn: Dynamics, start: float, end: float, *, wn: float = 160.0, rate: float = 1000.0,
-         dt: float = 1e-3, structure: str = "pid_g_v"):
+         dt: float = 1e-3, structure: str = "pid_g_v", loop: Loop = "auto",
+         limit: float = 20.0):
     ref = reference_at_ticks(traj.t, traj.q, traj.qd, 1 / rate, start, end)
-    c = Controller(dyn, Gains.tuned_at(dyn, ref.middle_pose(), wn), structure, rate, 20.0)
+    c = Controller(dyn, Gains.tuned_at(dyn, ref.middle_pose(), wn), structure, rate, limit)
     with make(backend, models, desc, dt_s=dt) as plant:
-        return simulate(plant, c, ref, sample_every=max(1, round(0.02 * rate)))
+        return simulate(plant, c, ref, sample_every=max(1, round(0.02 * rate)), loop=loop)
 
 
 def test_three_plants_agree_on_a_3_s_stretch(small_drawing: Trajectory,
@@ -232,6 +233,100 @@ def test_defaults_inside_the_boundary_track_to_microns(small_drawing: Trajectory
     tip, _ = chain.fk(run.q)
     tip_ref, _ = chain.fk(run.ref.q)
     assert np.linalg.norm(tip - tip_ref, axis=1).max() < 1e-3  # under a millimetre anywhere
+
+
+# ------------------------------------------------------------- the loop inside the engine
+
+#: how far the engine's PID may differ from the Python controller. Both compute the same
+#: law in double precision, in another order: terms up to Kp |q_r| ~ 300 N m round at
+#: ~7e-14 N m each, ~1e-13 N m a tick; on the lightest joint (J_eff 1.8e-5 kg m^2, 1 ms)
+#: that moves a joint by < 1e-14 rad a tick, and the stable loop does not let it pile up
+#: (measured on the whole emblem: 1.3e-15 rad, 1.5e-13 N m). The bounds leave 100x margin.
+ENGINE_Q_TOL_RAD = 1e-12
+ENGINE_TAU_TOL_NM = 1e-10
+
+
+def _same_run(a: Run, b: Run) -> None:
+    assert (a.loop, b.loop) == ("python", "engine")
+    assert (a.verdict, a.reason, a.completed) == (b.verdict, b.reason, b.completed)
+    assert len(a.t) == len(b.t) and a.qd_samples.shape == b.qd_samples.shape
+    assert np.abs(a.q - b.q).max() < ENGINE_Q_TOL_RAD
+    assert np.abs(a.qd_samples - b.qd_samples).max() < 1e3 * ENGINE_Q_TOL_RAD  # rad/s
+    assert np.abs(a.tau - b.tau).max() < ENGINE_TAU_TOL_NM
+
+
+@pytest.mark.parametrize("structure", ["pid", "pid_g", "pid_g_v"])
+def test_the_engine_runs_the_same_controller_on_a_3_s_stretch(
+        structure: str, small_drawing: Trajectory, models: tuple[Path, Path],
+        desc: RobotDescription, dyn: Dynamics) -> None:
+    start, end = _stretch(small_drawing, 3.0)
+    runs = [_run("mujoco", small_drawing, models, desc, dyn, start, end, wn=40.0,
+                 structure=structure, loop=loop) for loop in ("python", "engine")]
+    _same_run(*runs)
+    assert runs[1].summary()["loop_path"] == "engine"
+
+
+def test_the_engine_runs_the_same_controller_over_a_whole_drawing(
+        small_drawing: Trajectory, models: tuple[Path, Path], desc: RobotDescription,
+        dyn: Dynamics) -> None:
+    end = float(small_drawing.t[-1])
+    runs = [_run("mujoco", small_drawing, models, desc, dyn, 0.0, end, loop=loop)
+            for loop in ("python", "engine")]
+    _same_run(*runs)
+    assert runs[1].verdict == "ok" and runs[1].completed
+
+
+def test_the_engine_clamps_gravity_and_pid_together(
+        small_drawing: Trajectory, models: tuple[Path, Path], desc: RobotDescription,
+        dyn: Dynamics) -> None:
+    """A limit the run reaches: both paths clamp the sum, and agree."""
+    start, end = _stretch(small_drawing, 1.0)
+    runs = [_run("mujoco", small_drawing, models, desc, dyn, start, end, structure="pid_g",
+                 limit=0.05, loop=loop) for loop in ("python", "engine")]
+    assert np.abs(runs[1].tau).max() == pytest.approx(0.05)
+    assert runs[1].verdict in ("saturated", "diverged")
+    _same_run(*runs)
+
+
+def test_the_engine_stops_a_diverging_run_where_the_python_loop_does(
+        small_drawing: Trajectory, models: tuple[Path, Path], desc: RobotDescription,
+        dyn: Dynamics) -> None:
+    """wn 400 at 1 kHz (wn T 0.4, past the sampled boundary ~0.28): the same tick, the
+    same reason; what ran before the blow-up agrees."""
+    start, end = _stretch(small_drawing, 3.0)
+    a, b = (_run("mujoco", small_drawing, models, desc, dyn, start, end, wn=400.0,
+                 structure="pid_g", loop=loop) for loop in ("python", "engine"))
+    assert a.verdict == b.verdict == "diverged" and a.reason == b.reason
+    assert len(a.t) == len(b.t) < 3000
+    assert np.all(np.isfinite(b.q)) and np.all(np.isfinite(b.tau))
+
+
+def test_the_path_is_chosen_where_the_engine_can_run_the_controller(
+        small_drawing: Trajectory, models: tuple[Path, Path], desc: RobotDescription,
+        dyn: Dynamics) -> None:
+    start, end = _stretch(small_drawing, 0.2)
+    auto = {(backend, structure, dt): _run(backend, small_drawing, models, desc, dyn, start,
+                                           end, structure=structure, dt=dt).loop
+            for backend, structure, dt in (("mujoco", "pid_g_v", 1e-3),
+                                           ("mujoco", "computed_torque", 1e-3),
+                                           ("mujoco", "pid_g", 2.5e-4),
+                                           ("pybullet", "pid_g_v", 1e-3),
+                                           ("model", "pid", 1e-3))}
+    assert auto == {("mujoco", "pid_g_v", 1e-3): "engine",
+                    ("mujoco", "computed_torque", 1e-3): "python",
+                    ("mujoco", "pid_g", 2.5e-4): "python",
+                    ("pybullet", "pid_g_v", 1e-3): "python",
+                    ("model", "pid", 1e-3): "python"}
+    for backend, structure, dt, why in (
+            ("mujoco", "computed_torque", 1e-3, "no engine form"),
+            ("mujoco", "pid_g", 2.5e-4, "slower than the plant"),
+            ("pybullet", "pid_g", 1e-3, "no native PID")):
+        with pytest.raises(TattotronixError, match=why):
+            _run(backend, small_drawing, models, desc, dyn, start, end, structure=structure,
+                 dt=dt, loop="engine")
+    with pytest.raises(TattotronixError, match="loop='fast'"):
+        _run("mujoco", small_drawing, models, desc, dyn, start, end,
+             loop="fast")  # type: ignore[arg-type]
 
 
 # ----------------------------------------------------------------------------- scoring

@@ -242,3 +242,21 @@ def test_bad_arrays_and_options_are_refused() -> None:
         sampled_boundary_numeric(1.0, True)  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="lam=0.1"):
         sampled_boundary_numeric(0.1)  # continuous-time unstable: no boundary
+
+
+def test_python_control_is_imported_only_where_a_loop_is_analysed() -> None:
+    """Importing every module of the library (what a stage's start-up imports) leaves
+    python-control out: it costs seconds, and only the loop analysis uses it."""
+    import subprocess
+    import sys
+
+    code = ("import importlib, pkgutil, sys, tattotronix\n"
+            "for m in pkgutil.walk_packages(tattotronix.__path__, 'tattotronix.'):\n"
+            "    importlib.import_module(m.name)\n"
+            "print('control' in sys.modules, 'scipy.signal' in sys.modules)\n")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300, cwd=Path(__file__).resolve().parents[1])
+    assert run.returncode == 0, run.stderr
+    assert run.stdout.split() == ["False", "False"], run.stdout
+    analysis.step_overshoot_pct.cache_clear()
+    assert step_overshoot_pct(True) == pytest.approx(20.6, abs=0.05)  # imports it here

@@ -13,10 +13,12 @@ import numpy as np
 import pytest
 import yaml
 
-from tattotronix.config.params import compose
+from tattotronix.config.params import compose, compose_settings
+from tattotronix.config.schema import Config
+from tattotronix.errors import ConfigError, TattotronixError
 from tattotronix.io.outputs import Outputs
 from tattotronix.path.polyline import resample
-from tattotronix.studies.base import int_label, load_cases
+from tattotronix.studies.base import CaseResult, int_label, load_cases, run_parallel
 from tattotronix.studies.registry import STUDIES
 from tattotronix.studies.resample import chord_error_mm
 
@@ -42,26 +44,25 @@ def _stage(study: str, data: Path, *overrides: str, multirun: bool = False
 
 # --- names -----------------------------------------------------------------------------
 
-def test_case_names_match_the_dvc_stage_outputs() -> None:
-    """dvc.yaml names each case's outputs from conf/study; the stage names them from the
-    swept keys: the two must agree, or DVC would miss the files."""
+def test_case_names_match_the_configured_names() -> None:
+    """A study's stage names each case's files from the swept keys; conf/study names the
+    cases: the two agree for every configured case (else the stage refuses to run)."""
     params = yaml.safe_load((ROOT / "params.yaml").read_text())["study"]
-    dvc = (ROOT / "dvc.yaml").read_text()
     for key, case in params["control"]["cases"].items():
         cfg = compose([f"controller.structure={case['structure']}",
                        f"controller.wn={case['wn']}"])
         assert STUDIES["control"].case_name(cfg) == key
-    assert "${paths.data}/metrics/control/${study_artwork}/${key}.json" in dvc
     for v in params["approach_mm"]:
         assert STUDIES["approach"].case_name(compose([f"toolpath.approach_mm={v}"])) == f"{v}mm"
-    assert "${paths.data}/metrics/approach/${study_artwork}/${item}mm.json" in dvc
     for v in params["step_mm"]:
         assert STUDIES["resample"].case_name(compose([f"toolpath.step_mm={v}"])) == f"{v}mm"
     for r in params["rate_hz"]:
         for w in params["rate_wn"]:
             cfg = compose([f"controller.rate_hz={r}", f"controller.wn={w}"])
             assert STUDIES["rate"].case_name(cfg) == f"{r}hz-wn{w}"
-    assert "${item.rate}hz-wn${item.wn}.json" in dvc
+    for name, study in STUDIES.items():
+        cases = study.cases(compose().study)
+        assert all(study.case_name(compose(o)) == c for c, o in cases.items()), name
 
 
 def test_every_study_names_its_configured_cases_and_has_its_stages() -> None:
@@ -78,9 +79,13 @@ def test_every_study_names_its_configured_cases_and_has_its_stages() -> None:
         assert cases, name
         for case, overrides in {cases[0][0]: cases[0][1], cases[-1][0]: cases[-1][1]}.items():
             assert study.case_name(compose(overrides)) == case, (name, case)
-        body = stages[name].get("do", stages[name])
+        body = stages[name]
         script = f"stages/{SCRIPT[name]}.py"
+        # one stage per study, every case at once; one file per case in its folders
         assert body["cmd"].startswith(f"python {script} "), name
+        assert "study.all_cases=true" in body["cmd"].split(), name
+        assert body["outs"] == [f"${{paths.data}}/studies/{name}/${{study_artwork}}"], name
+        assert list(body["metrics"][0]) == [f"${{paths.data}}/metrics/{name}/${{study_artwork}}"]
         source = (ROOT / script).read_text()
         assert f"from tattotronix.studies.{name} import STUDY" in source, script
         figure = f"${{paths.data}}/figures/${{study_artwork}}/{name}.png"
@@ -116,6 +121,33 @@ def test_chord_error_of_a_straight_line_and_of_its_own_resampling_is_zero() -> N
     assert chord_error_mm(dense[:2], 0.6) == 0.0
 
 
+# --- cases in parallel -----------------------------------------------------------------
+
+def _refuse_wn40(cfg: Config, data: Path) -> CaseResult:
+    if cfg.controller.wn == 40:
+        raise TattotronixError("no drawing here")
+    return CaseResult("art", str(cfg.controller.wn), {"wn": cfg.controller.wn}, {}, "{}")
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_cases_run_in_a_pool_in_order_and_a_refusal_names_its_case(workers: int,
+                                                                  tmp_path: Path) -> None:
+    cases = {f"wn{w}": compose_settings([f"controller.wn={w}"]) for w in (10, 20, 80)}
+    done = run_parallel(_refuse_wn40, cases, tmp_path, workers)
+    assert [r.metrics["wn"] for r in done] == [10.0, 20.0, 80.0]
+    cases["wn40"] = compose_settings(["controller.wn=40"])
+    with pytest.raises(TattotronixError, match="case 'wn40': no drawing here"):
+        run_parallel(_refuse_wn40, cases, tmp_path, workers)
+
+
+def test_a_case_named_other_than_its_settings_is_refused(tmp_path: Path) -> None:
+    cfg = compose_settings([f"paths.data={tmp_path}", "study.approach_mm=[1.0]"])
+    study = STUDIES["approach"]
+    bad = type("Misnamed", (type(study),), {"case_name": lambda self, c: "other"})()
+    with pytest.raises(ConfigError, match="'1.0mm' runs as 'other'"):
+        bad.run_all(cfg, Outputs(tmp_path))
+
+
 # --- cases end to end ------------------------------------------------------------------
 
 @pytest.mark.slow
@@ -138,10 +170,19 @@ def test_control_case_runs_whole_and_busiest_and_writes_its_metrics(draw_data: P
 @pytest.mark.slow
 def test_approach_and_resample_cases_replan_the_path(draw_data: Path) -> None:
     for study, key in (("approach", "toolpath.approach_mm=0.0"),
-                       ("approach", "toolpath.approach_mm=4.0"),
                        ("resample", "toolpath.step_mm=0.6")):
         r = _stage(study, draw_data, key)
         assert r.returncode == 0, r.stderr
+    by_hand = (draw_data / "metrics/approach/small/0.0mm.json").read_bytes()
+    stale = draw_data / "metrics/approach/small/9.0mm.json"
+    stale.write_text("{}")
+    # the stage's way: every configured case at once, in a pool; exactly those cases
+    r = _stage("approach", draw_data, "study.all_cases=true", "study.approach_mm=[0.0,4.0]")
+    assert r.returncode == 0, r.stderr
+    assert not stale.exists()
+    assert (draw_data / "metrics/approach/small/0.0mm.json").read_bytes() == by_hand
+    assert sorted(p.name for p in (draw_data / "studies/approach/small").iterdir()) == [
+        "0.0mm.npz", "4.0mm.npz"]
     a = load_cases(draw_data, "approach", "small")
     assert sorted(a) == ["0.0mm", "4.0mm"]
     # the slow approach costs cycle time and cuts the entry transient

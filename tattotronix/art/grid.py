@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -38,6 +39,22 @@ class InkMask:
         xs = (np.arange(w) - w / 2) * res_mm
         ys = ((np.arange(h) - h / 2) * res_mm)[::-1].copy()
         return cls(np.asarray(ink, dtype=bool), float(res_mm), xs, ys)
+
+    @cached_property
+    def background_runs(self) -> tuple[NDArray[np.int32], NDArray[np.int32]]:
+        """Prefix counts of the background, for counting it along any run of a row or column.
+
+        ``(col_runs, row_runs)``: ``col_runs[k, c]`` is the number of background pixels in
+        column ``c`` above row ``k``, (H + 1, W); ``row_runs[k, r]`` the number in row
+        ``r`` left of column ``k``, (W + 1, H). Computed once per mask.
+        """
+        bg = (~self.ink).astype(np.int32)
+        h, w = bg.shape
+        col_runs = np.zeros((h + 1, w), np.int32)
+        np.cumsum(bg, axis=0, out=col_runs[1:])
+        row_runs = np.zeros((w + 1, h), np.int32)
+        np.cumsum(bg.T, axis=0, out=row_runs[1:])
+        return col_runs, row_runs
 
     @property
     def size_mm(self) -> tuple[float, float]:

@@ -25,7 +25,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from tattotronix.config.schema import Config, Plain, out_of_range
+from tattotronix.config.schema import Config, Plain, out_of_range, to_dict
 from tattotronix.errors import ConfigError
 
 __all__ = [
@@ -40,6 +40,7 @@ __all__ = [
     "params_text",
     "stale_message",
     "to_settings",
+    "with_overrides",
 ]
 
 PROJECT_ROOT = Path(__file__).resolve().parents[2]
@@ -148,6 +149,22 @@ def to_settings(cfg: DictConfig) -> Config:
     if problems:
         raise ConfigError("; ".join(problems))
     return obj
+
+
+def with_overrides(cfg: Config, overrides: Sequence[str]) -> Config:
+    """``cfg`` with dotted ``key=value`` overrides applied (a study's case from the stage's
+    settings), checked as :func:`to_settings` checks.
+
+    Raises:
+        ConfigError: an unknown key, or a value of the wrong type or out of range.
+    """
+    try:
+        merged = OmegaConf.merge(OmegaConf.structured(Config), to_dict(cfg),
+                                 OmegaConf.from_dotlist(list(overrides)))
+    except Exception as exc:
+        raise ConfigError(f"bad configuration: {_root_cause(exc)}") from None
+    assert isinstance(merged, DictConfig)
+    return to_settings(merged)
 
 
 def compose_settings(overrides: Sequence[str] = (), conf_dir: Path = CONF_DIR) -> Config:

@@ -775,6 +775,9 @@ class StudyConfig:
     """
 
     window_s: float = bounded(12.0, lo=0, lo_open=True, hi=1e5, unit="s")  # busiest window
+    # run every configured case of the study, concurrently (the DVC stage); false: the one
+    # case the settings describe (a hand run)
+    all_cases: bool = False
     kinematics: KinematicsStudyConfig = field(default_factory=KinematicsStudyConfig)
     control: ControlStudyConfig = field(default_factory=ControlStudyConfig)
     # the same ranges as toolpath.approach_mm, toolpath.step_mm, controller.rate_hz,

@@ -29,12 +29,14 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
-from typing import TypedDict
+from typing import TYPE_CHECKING, TypedDict
 
-import control
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
+
+if TYPE_CHECKING:  # python-control is imported where a loop is analysed, not at start-up
+    import control
 
 __all__ = [
     "LoopReport",
@@ -212,6 +214,8 @@ def _plant(lam: float, x: float, substeps: int | None) -> control.StateSpace:
         h = x / substeps
         step = np.array([[1.0, h, lam * h * h], [0.0, 1.0, lam * h], [0.0, 0.0, 1.0]])
         period = np.linalg.matrix_power(step, substeps)
+    import control
+
     return control.ss(period[:2, :2], period[:2, 2:], np.eye(2), np.zeros((2, 1)), dt=x)
 
 
@@ -222,6 +226,8 @@ def _controller(x: float) -> control.StateSpace:
     ``I_k = I_{k-1} - q T`` and ``tau = -Kp q + Ki I_k - Kd qd``.
     """
     kp, ki, kd = (float(g[0]) for g in pole_placement_gains([1.0], 1.0))
+    import control
+
     return control.ss([[1.0]], [[-x, 0.0]], [[ki]], [[-kp - ki * x, -kd]], dt=x)
 
 
@@ -248,6 +254,8 @@ def mode_loop_matrix(lam: float, x: float, substeps: int | None = None) -> Array
     lv = _positive("lam", lam)
     xv = _positive("x", x)
     n = _substeps(substeps)
+    import control
+
     loop = control.feedback(_plant(lv, xv, n), _controller(xv), sign=1)
     # physical state (q, qd, I_{k-1}) -> (q, T qd, I_{k-1} / T)
     scale = np.array([1.0, xv, 1.0 / xv])
@@ -314,6 +322,8 @@ def step_overshoot_pct(derivative_on_error: bool) -> float:
     Args:
         derivative_on_error: True for PID (velocity feedforward on), False for PI-D.
     """
+    import control
+
     num = [3.0, 3.0, 1.0] if derivative_on_error else [3.0, 1.0]
     sys = control.tf(num, [1.0, 3.0, 3.0, 1.0])
     info = control.step_info(sys, timepts=np.linspace(0.0, 20.0, 20001))

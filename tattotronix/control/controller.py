@@ -38,6 +38,7 @@ from tattotronix.control.dynamics import Dynamics
 from tattotronix.control.reference import Reference
 from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
+from tattotronix.plants.base import PidSpec
 
 __all__ = ["Controller", "Gains", "Structure", "structure_of"]
 
@@ -150,17 +151,31 @@ class Controller:
         """True when the velocity feedforward is on (``pid_g_v``, ``computed_torque``)."""
         return self.structure in (Structure.pid_g_v, Structure.computed_torque)
 
-    def bind(self, ref: Reference) -> None:
-        """Precompute the per-tick constants of a reference and reset the integral."""
+    def engine_spec(self) -> PidSpec | None:
+        """This controller as a PID an engine can run itself (``pid``, ``pid_g``,
+        ``pid_g_v``; the gravity then is the plant's own, equal to this model's where the
+        models agree), or None (``computed_torque`` needs the model every tick)."""
+        if self.structure is Structure.computed_torque:
+            return None
+        g = self.gains
+        return PidSpec(kp=g.kp.copy(), ki=g.ki.copy(), kd=g.kd.copy(),
+                       limit=self.torque_limit.copy(),
+                       gravity=self.structure is not Structure.pid)
+
+    def bind(self, ref: Reference, per_tick: bool = True) -> None:
+        """Follow ``ref`` from its first tick: reset the integral and, for :meth:`torque`
+        (``per_tick``; the engine's loop needs none), precompute each tick's constants."""
         if abs(ref.period_s - self.period_s) > 1e-12 * self.period_s:
             raise TattotronixError(f"reference sampled every {ref.period_s} s, the controller "
                                    f"runs every {self.period_s} s")
-        g = self.gains
-        r = ref.q * self.period_s  # q_r T: the integral's reference part
-        c = g.kp * ref.q + g.ki * r + (g.kd * ref.qd if self.derivative_on_error else 0.0)
         self._ref = ref
-        self._r = r.tolist()
-        self._c = c.tolist()
+        self._r, self._c = [], []
+        if per_tick:
+            g = self.gains
+            r = ref.q * self.period_s  # q_r T: the integral's reference part
+            c = g.kp * ref.q + g.ki * r + (g.kd * ref.qd if self.derivative_on_error else 0.0)
+            self._r = r.tolist()
+            self._c = c.tolist()
         self.reset()
 
     def reset(self) -> None:

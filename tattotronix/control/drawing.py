@@ -32,7 +32,7 @@ from tattotronix.control.controller import Controller, Gains
 from tattotronix.control.dynamics import Dynamics
 from tattotronix.control.ink import compare_ink, ink_grid, rasterise_ink
 from tattotronix.control.reference import reference_at_ticks, resolve_window
-from tattotronix.control.simulate import Run, simulate, substeps_per_tick
+from tattotronix.control.simulate import Loop, Run, simulate, substeps_per_tick
 from tattotronix.control.tracking import TrackingErrors, tracking_errors
 from tattotronix.errors import StageInputMissing, TattotronixError
 from tattotronix.io.artifacts import (
@@ -52,7 +52,7 @@ from tattotronix.robot.description import RobotDescription, build_description
 from tattotronix.trajectory import JointPath, load_trajectory
 
 __all__ = ["MAX_TICKS", "ClosedLoop", "Drawing", "available_drawings", "check_tick_budget",
-           "draw_simulated", "resolve_drawing", "run_closed_loop"]
+           "draw_simulated", "resolve_drawing", "run_closed_loop", "warm_up"]
 
 log = logging.getLogger("tattotronix.draw")
 Array = NDArray[np.float64]
@@ -309,7 +309,8 @@ def check_tick_budget(duration_s: float, rate_hz: float) -> None:
 
 def run_closed_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Drawing, *,
                     window: object = None, plant_dt_s: float | None = None,
-                    progress: bool = False, viewer: bool = False) -> ClosedLoop:
+                    progress: bool = False, viewer: bool = False,
+                    loop: Loop = "auto") -> ClosedLoop:
     """Run ``drawing`` closed loop on the configured backend and controller.
 
     Args:
@@ -322,6 +323,8 @@ def run_closed_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Dr
         plant_dt_s: the plant step, s (default ``plant.dt_s``).
         progress: show a progress bar.
         viewer: watch the run where a display exists.
+        loop: which path runs the controller (:func:`~tattotronix.control.simulate.simulate`;
+            ``auto``: the engine wherever it can).
 
     Raises:
         TattotronixError: missing models, a bad rate, tuning pose or window.
@@ -367,11 +370,23 @@ def run_closed_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Dr
                         viewer=viewer) as plant:
             run = simulate(plant, controller, ref, sample_every=sample_every,
                            abort_error_rad=float(cfg.plant.abort_error_rad), progress=bar,
-                           viewer=viewer)
+                           viewer=viewer, loop=loop)
     finally:
         bar.close()
     return ClosedLoop(drawing, run, controller, analysis, (start, end), sample_every,
                       backend, settings.dt_s)
+
+
+def warm_up() -> None:
+    """Import what every closed-loop run needs (the engines, the dynamics, python-control
+    for the loop analysis): once, before forking workers that each run some."""
+    import mujoco  # noqa: F401
+    import pinocchio  # noqa: F401
+
+    from tattotronix.control.analysis import step_overshoot_pct
+
+    step_overshoot_pct(False)
+    step_overshoot_pct(True)
 
 
 def draw_simulated(cfg: Config, out: Outputs) -> JsonDict:

@@ -6,6 +6,18 @@ Every ``sample_every`` ticks the run is checked: a non-finite state, an engine w
 a joint further than ``abort_error_rad`` from its reference ends it as *diverged* (the
 log keeps what ran; nothing is NaN). The verdict is then ``diverged``, ``saturated`` (the
 torque reached 0.999 of its limit) or ``ok``.
+
+Two paths run the same controller (docs/control.md, "The loop inside the engine"):
+
+* ``engine``: where the plant can run the PID itself (MuJoCo's native ``pid`` actuator,
+  :meth:`~tattotronix.plants.base.Plant.engine_pid`), one controller tick per plant step,
+  for ``pid``, ``pid_g`` and ``pid_g_v``: the reference (and its rate, for ``pid_g_v``)
+  is the control sequence, stepped in C a second of simulated time per call, and the log
+  is read back from the engine's states. The checks fall at the same ticks.
+* ``python``: the controller in Python every tick, for the rest (``computed_torque``, a
+  controller slower than the plant, a plant without a native PID, a live viewer).
+
+``loop="auto"`` picks the engine wherever it can; :attr:`Run.loop` says which ran.
 """
 
 from __future__ import annotations
@@ -14,6 +26,7 @@ import gc
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,9 +36,9 @@ from tattotronix.control.controller import Controller
 from tattotronix.control.reference import Reference
 from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
-from tattotronix.plants.base import Plant
+from tattotronix.plants.base import EnginePid, Plant
 
-__all__ = ["Run", "simulate", "substeps_per_tick"]
+__all__ = ["LOOPS", "Loop", "Run", "simulate", "substeps_per_tick"]
 
 Array = NDArray[np.float64]
 
@@ -33,6 +46,10 @@ Array = NDArray[np.float64]
 Progress = Callable[[float, float], None]
 
 SATURATION = 0.999  # of the torque limit: "saturated" (docs/original.md, "5.5 Tracking error")
+
+#: which path runs the controller: ``auto`` (the engine wherever it can), or one forced
+Loop = Literal["auto", "engine", "python"]
+LOOPS: tuple[Loop, ...] = ("auto", "engine", "python")
 
 
 @dataclass(frozen=True)
@@ -52,6 +69,7 @@ class Run:
         reason: why it diverged ("" otherwise).
         wall_s: wall time of the loop, s.
         substeps: plant steps per tick.
+        loop: the path that ran the controller: ``engine`` or ``python``.
     """
 
     backend: str
@@ -66,6 +84,7 @@ class Run:
     reason: str
     wall_s: float
     substeps: int
+    loop: str = "python"
 
     @property
     def sim_s(self) -> float:
@@ -91,7 +110,8 @@ class Run:
         """JSON-ready; the same on every run of the same inputs (no wall times)."""
         return {"backend": self.backend, "verdict": self.verdict, "reason": self.reason,
                 "completed": self.completed, "sim_s": self.sim_s, "ticks": len(self.t),
-                "substeps": self.substeps, "peak_torque_nm": self.peak_torque_nm}
+                "substeps": self.substeps, "loop_path": self.loop,
+                "peak_torque_nm": self.peak_torque_nm}
 
 
 def substeps_per_tick(period_s: float, dt_s: float) -> int:
@@ -113,18 +133,38 @@ def _check(plant: Plant, q: Array, ref: Reference, k: int, abort_error_rad: floa
     """Why the run must stop after tick ``k`` ("" if it may go on)."""
     if not plant.healthy():
         return "the plant's state is not finite (the engine reported instability)"
-    i = min(k, ref.ticks - 1)
-    err = float(np.max(np.abs(q - ref.q[i])))
-    if not err <= abort_error_rad:
-        return (f"a joint is {err:.3g} rad from its reference at t = {ref.t[i]:.3f} s "
-                f"(abort at {abort_error_rad:g} rad)")
-    return ""
+    err = float(np.max(np.abs(q - ref.q[min(k, ref.ticks - 1)])))
+    return "" if err <= abort_error_rad else _too_far(err, ref, k, abort_error_rad)
+
+
+def _too_far(err: float, ref: Reference, k: int, abort_error_rad: float) -> str:
+    return (f"a joint is {err:.3g} rad from its reference at t = "
+            f"{ref.t[min(k, ref.ticks - 1)]:.3f} s (abort at {abort_error_rad:g} rad)")
+
+
+def _engine(plant: Plant, controller: Controller, sub: int, viewer: bool,
+            loop: Loop) -> EnginePid | None:
+    """The plant's engine running the controller, where it can (and ``loop`` allows)."""
+    if loop not in LOOPS:
+        raise TattotronixError(f"loop='{loop}': use one of {', '.join(LOOPS)}")
+    spec = controller.engine_spec()
+    engine = None
+    if loop != "python" and sub == 1 and not viewer and spec is not None:
+        engine = plant.engine_pid(spec)
+    if engine is None and loop == "engine":
+        why = ("the controller is slower than the plant" if sub != 1 else
+               "a live viewer needs the Python loop" if viewer else
+               f"{controller.structure.name} has no engine form" if spec is None else
+               f"the {plant.backend} plant has no native PID")
+        raise TattotronixError(f"loop='engine' cannot run here: {why}")
+    return engine
 
 
 def simulate(plant: Plant, controller: Controller, ref: Reference, *, sample_every: int,
              abort_error_rad: float = PlantConfig().abort_error_rad,
              progress: Progress | None = None,
-             progress_every_s: float = 1.0, viewer: bool = False) -> Run:
+             progress_every_s: float = 1.0, viewer: bool = False,
+             loop: Loop = "auto") -> Run:
     """Run ``controller`` on ``plant`` along ``ref`` from the reference's first state.
 
     Args:
@@ -135,51 +175,34 @@ def simulate(plant: Plant, controller: Controller, ref: Reference, *, sample_eve
         abort_error_rad: a joint this far from its reference ends the run (diverged).
         progress: called every ``progress_every_s`` simulated seconds.
         viewer: refresh the plant's viewer at every check (real-time pacing).
+        loop: ``auto`` (the engine wherever it can), ``engine`` or ``python``.
+
+    Raises:
+        TattotronixError: ``loop="engine"`` where the engine cannot run this controller.
     """
-    n_ticks, n = ref.ticks, plant.n
     sub = substeps_per_tick(ref.period_s, plant.dt)
     every = max(1, int(sample_every))
-    controller.bind(ref)
-    plant.reset(ref.q[0], ref.qd[0])
-    q_log = np.empty((n_ticks, n))
-    tau_log = np.zeros((n_ticks, n))
-    qd_log = np.empty(((n_ticks - 1) // every + 1, n))  # rates at the samples only
-    torque, apply, step = controller.torque, plant.apply, plant.step
-    q, qd = plant.q, plant.qd  # live views, updated in place by every step
     report_every = max(every, int(round(progress_every_s / ref.period_s)))
-    reason = ""
-    k = 0
+    engine = _engine(plant, controller, sub, viewer, loop)
+    controller.bind(ref, per_tick=engine is None)
     gc_was_on = gc.isenabled()
     gc.disable()  # the loop allocates short-lived lists only: no cycles to collect
     wall0 = time.perf_counter()
     try:
-        while k < n_ticks:
-            stop = min(k + every, n_ticks)
-            qd_log[k // every] = qd
-            for j in range(k, stop):
-                q_log[j] = q
-                tau = torque(j, q, qd)
-                tau_log[j] = tau
-                apply(tau)
-                step(sub)
-            k = stop
-            reason = _check(plant, q, ref, k, abort_error_rad)
-            if reason:
-                # keep only the ticks whose logged state is finite
-                good = np.all(np.isfinite(q_log[:k]), axis=1)
-                k = k if good.all() else int(np.argmin(good))
-                break
-            if viewer:
-                plant.sync_viewer()
-            if progress is not None and (k % report_every < every or k == n_ticks):
-                progress(k * ref.period_s, time.perf_counter() - wall0)
+        if engine is None:
+            k, reason, logs = _python_loop(plant, controller, ref, sub, every, report_every,
+                                           abort_error_rad, progress, viewer, wall0)
+        else:
+            k, reason, logs = _engine_loop(engine, controller, ref, every, report_every,
+                                           abort_error_rad, progress, wall0)
     finally:
         if gc_was_on:
             gc.enable()
     wall = time.perf_counter() - wall0
+    q_log, qd_log, tau_log = logs
     tau_arr = tau_log[:k]
     tau_arr[~np.isfinite(tau_arr)] = 0.0
-    completed = k == n_ticks and not reason
+    completed = k == ref.ticks and not reason
     lim = controller.torque_limit
     if reason:
         verdict = "diverged"
@@ -191,4 +214,91 @@ def simulate(plant: Plant, controller: Controller, ref: Reference, *, sample_eve
     qd_s[~np.isfinite(qd_s)] = 0.0
     return Run(backend=plant.backend, t=ref.t[:k].copy(), q=q_log[:k], qd_samples=qd_s,
                sample_every=every, tau=tau_arr, ref=ref, completed=completed,
-               verdict=verdict, reason=reason, wall_s=wall, substeps=sub)
+               verdict=verdict, reason=reason, wall_s=wall, substeps=sub,
+               loop="python" if engine is None else "engine")
+
+
+#: (ticks that ran, why it stopped ("" if it did not), (q, qd at the samples, tau) logs)
+_Outcome = tuple[int, str, tuple[Array, Array, Array]]
+
+
+def _logs(n_ticks: int, n: int, every: int) -> tuple[Array, Array, Array]:
+    return (np.empty((n_ticks, n)), np.empty(((n_ticks - 1) // every + 1, n)),
+            np.zeros((n_ticks, n)))
+
+
+def _finite_prefix(q_log: Array, k: int) -> int:
+    """The ticks before the first logged state that is not finite (of the first ``k``)."""
+    good = np.all(np.isfinite(q_log[:k]), axis=1)
+    return k if good.all() else int(np.argmin(good))
+
+
+def _python_loop(plant: Plant, controller: Controller, ref: Reference, sub: int, every: int,
+                 report_every: int, abort_error_rad: float, progress: Progress | None,
+                 viewer: bool, wall0: float) -> _Outcome:
+    """The controller in Python, one torque per tick, checked every ``every`` ticks."""
+    n_ticks = ref.ticks
+    plant.reset(ref.q[0], ref.qd[0])
+    q_log, qd_log, tau_log = _logs(n_ticks, plant.n, every)
+    torque, apply, step = controller.torque, plant.apply, plant.step
+    q, qd = plant.q, plant.qd  # live views, updated in place by every step
+    reason = ""
+    k = 0
+    while k < n_ticks:
+        stop = min(k + every, n_ticks)
+        qd_log[k // every] = qd
+        for j in range(k, stop):
+            q_log[j] = q
+            tau = torque(j, q, qd)
+            tau_log[j] = tau
+            apply(tau)
+            step(sub)
+        k = stop
+        reason = _check(plant, q, ref, k, abort_error_rad)
+        if reason:
+            k = _finite_prefix(q_log, k)  # keep only the ticks whose logged state is finite
+            break
+        if viewer:
+            plant.sync_viewer()
+        if progress is not None and (k % report_every < every or k == n_ticks):
+            progress(k * ref.period_s, time.perf_counter() - wall0)
+    return k, reason, (q_log, qd_log, tau_log)
+
+
+def _engine_loop(engine: EnginePid, controller: Controller, ref: Reference, every: int,
+                 report_every: int, abort_error_rad: float, progress: Progress | None,
+                 wall0: float) -> _Outcome:
+    """The controller inside the engine, a stretch of ``report_every`` ticks per call
+    (whole checks), checked at the same ticks as the Python loop."""
+    n_ticks, n = ref.ticks, controller.n
+    engine.reset(ref.q[0], ref.qd[0])
+    q_log, qd_log, tau_log = _logs(n_ticks, n, every)
+    v_ref = ref.qd if controller.derivative_on_error else np.zeros_like(ref.qd)
+    chunk = report_every - report_every % every
+    reason = ""
+    k = 0
+    while k < n_ticks:
+        stop = min(k + chunk, n_ticks)
+        q, qd, tau = engine.run(ref.q[k:stop], v_ref[k:stop])
+        q_log[k:stop], tau_log[k:stop] = q, tau
+        qd_log[k // every:(stop - 1) // every + 1] = qd[::every]
+        # the Python loop's checks: after each `every` ticks, and at the very end
+        ends = np.append(np.arange(k + every, stop, every), stop)
+        q_end, _ = engine.state()
+        q_at = np.vstack([q_log[ends[:-1]], q_end[None]])
+        err = np.max(np.abs(q_at - ref.q[np.minimum(ends, n_ticks - 1)]), axis=1)
+        bad = ~(np.all(np.isfinite(q_at), axis=1) & (err <= abort_error_rad))
+        if bad.any() or not engine.healthy():
+            # the first failing check, as the Python loop would have stopped there (an
+            # engine warning with every check passed: the last check of the stretch)
+            i = int(np.argmax(bad)) if bad.any() else len(ends) - 1
+            k = int(ends[i])
+            far = bool(bad.any() and np.all(np.isfinite(q_at[i])))
+            reason = (_too_far(float(err[i]), ref, k, abort_error_rad) if far else
+                      "the plant's state is not finite (the engine reported instability)")
+            k = _finite_prefix(q_log, k)
+            break
+        k = stop
+        if progress is not None:
+            progress(k * ref.period_s, time.perf_counter() - wall0)
+    return k, reason, (q_log, qd_log, tau_log)

@@ -31,6 +31,7 @@ class Outputs:
         #: in a Hydra multirun, this job's overrides (``key=value``); None otherwise
         self.sweep_overrides = sweep_overrides
         self._pending: list[tuple[Path, Path]] = []
+        self._removals: list[Path] = []  # files that go at the commit
         self._made: list[Path] = []  # folders made for the temporaries, outermost first
 
     def sweep_suffix(self, ignore: tuple[str, ...] = ()) -> str:
@@ -88,11 +89,18 @@ class Outputs:
         """A temporary path for a writer that needs a file name (npz, png, ...)."""
         return self._tmp(target)
 
+    def remove(self, target: Path) -> None:
+        """Stage the removal of a file (it goes at the commit; an abort keeps it)."""
+        self._removals.append(target)
+
     def commit(self) -> None:
-        """Rename every staged file into place."""
+        """Remove the files staged for removal, then rename every staged file into place."""
+        for target in self._removals:
+            target.unlink(missing_ok=True)
         for tmp, target in self._pending:
             tmp.replace(target)
         self._pending.clear()
+        self._removals.clear()
         self._made.clear()
 
     def abort(self) -> None:
@@ -103,6 +111,7 @@ class Outputs:
             else:
                 tmp.unlink(missing_ok=True)
         self._pending.clear()
+        self._removals.clear()
         for folder in reversed(self._made):  # innermost first; only the empty ones go
             try:
                 folder.rmdir()

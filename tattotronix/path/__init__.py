@@ -10,7 +10,8 @@ Entry point: :func:`tattotronix.path.plan.plan_toolpath` (mask to ordered 3-D pa
 * ``inklookup`` and ``costs``: on-ink tests and the time cost between strokes;
 * ``order``: the original's order and ours (greedy, 2-opt, seams);
 * ``path3d``: lifts, plunges with the slow approach, drags; ``timing``: times and figures;
-* ``panel``: the panel fit check and the arm-frame mapping; ``figure``: the PNG.
+* ``panel``: the panel fit check and the arm-frame mapping; ``figure``: the PNG;
+* ``laps``: the wall time of each planning step (for the benchmark).
 """
 
 from __future__ import annotations

@@ -33,13 +33,16 @@ from numpy.typing import NDArray
 
 from tattotronix.art.grid import InkMask
 from tattotronix.path.costs import TransitionCosts, can_drag
+from tattotronix.path.laps import Laps
 from tattotronix.path.params import ToolpathParams
+from tattotronix.path.polyline import oriented, resample_many
 from tattotronix.path.strokes import Drawing, StrokeKind
 
 __all__ = ["Order", "OrderResult", "optimise_order", "original_order"]
 
 _GAIN_TOL_S = 1e-9  # a move must save more than this to count
 _BLOCK_ROWS = 256  # 2-opt rows scored at once (bounds memory to ~ rows x n)
+_TRIANGLE_BLOCK_ROWS = 64  # the same with the lift costs looked up (scores j >= i only)
 MAX_PASSES = 200  # 2-opt passes in all: a budget of work, never of wall time
 
 
@@ -59,10 +62,46 @@ class Order:
 
     def points(self, drawing: Drawing, step_mm: float) -> list[NDArray[np.float64]]:
         """Each stroke resampled at ``step_mm``, in drawing order, oriented as ordered."""
-        return [
-            drawing.strokes[int(s)].points(step_mm, int(seam), bool(rev))
-            for s, rev, seam in zip(self.sequence, self.reverse, self.seam, strict=True)
-        ]
+        pts, bounds = self.resampled(drawing, step_mm)
+        return [pts[bounds[k] : bounds[k + 1]] for k in range(len(bounds) - 1)]
+
+    def resampled(
+        self, drawing: Drawing, step_mm: float,
+        canonical: tuple[NDArray[np.float64], NDArray[np.intp]] | None = None,
+    ) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+        """:meth:`points`, laid out one stroke after the other: ``(pts, bounds)``.
+
+        Args:
+            drawing: the strokes.
+            step_mm: the resampling step, mm.
+            canonical: the strokes resampled in their own order and direction from vertex
+                0 (``resample_many(drawing.vertices, drawing.bounds, step_mm)``), if made
+                already: the strokes drawn that way are taken from it, not resampled again.
+        """
+        seq = np.asarray(self.sequence, dtype=np.intp)
+        closed = drawing.closed[seq]
+        seam = np.asarray(self.seam, dtype=np.intp)
+        rev = np.asarray(self.reverse, dtype=bool)
+        vb = drawing.bounds
+        fresh = rev | (closed & (seam != 0)) if canonical is not None else np.ones(len(seq), bool)
+        # the strokes not in ``canonical``, oriented, resampled together
+        f = np.flatnonzero(fresh)
+        sizes = (vb[1:] - vb[:-1])[seq[f]]
+        fb = np.concatenate([[0], np.cumsum(sizes)]).astype(np.intp)
+        src = np.repeat(vb[seq[f]] - fb[:-1], sizes) + np.arange(int(fb[-1]))
+        order = oriented(fb, closed[f], seam[f], rev[f])
+        new_pts, new_b = resample_many(drawing.vertices[src[order]], fb, step_mm)
+        if canonical is None:
+            return new_pts, new_b
+        can_pts, can_b = canonical
+        # gather: each position from its source, canonical or fresh
+        start = can_b[seq]
+        count = can_b[seq + 1] - start
+        start[f] = new_b[:-1] + len(can_pts)
+        count[f] = np.diff(new_b)
+        bounds = np.concatenate([[0], np.cumsum(count)]).astype(np.intp)
+        rows = np.repeat(start - bounds[:-1], count) + np.arange(int(bounds[-1]))
+        return np.concatenate([can_pts, new_pts])[rows], bounds
 
 
 @dataclass(frozen=True)
@@ -100,12 +139,12 @@ def original_order(drawing: Drawing) -> Order:
 
 def _endpoints(drawing: Drawing, seam: NDArray[np.intp]) -> NDArray[np.float64]:
     """(2n, 2): row 2i is stroke i's start, row 2i + 1 its end, for the given seams."""
+    vb, closed = drawing.bounds, drawing.closed
+    first, last = vb[:-1], vb[1:] - 1
+    at_seam = first + np.asarray(seam, dtype=np.intp) % np.maximum(last - first, 1)
     pts = np.empty((2 * len(drawing.strokes), 2))
-    for i, s in enumerate(drawing.strokes):
-        if s.closed:
-            pts[2 * i] = pts[2 * i + 1] = s.path_mm[int(seam[i]) % (len(s.path_mm) - 1)]
-        else:
-            pts[2 * i], pts[2 * i + 1] = s.path_mm[0], s.path_mm[-1]
+    pts[0::2] = drawing.vertices[np.where(closed, at_seam, first)]
+    pts[1::2] = drawing.vertices[np.where(closed, at_seam, last)]
     return pts
 
 
@@ -154,31 +193,45 @@ class _Precedence:
 
 
 def _greedy(
-    costs: TransitionCosts, prec: _Precedence, first: int
-) -> tuple[NDArray[np.intp], NDArray[np.bool_]]:
-    """Nearest neighbour in time from endpoint ``first``, with reversal and precedence."""
+    costs: TransitionCosts, prec: _Precedence, firsts: list[int]
+) -> list[tuple[NDArray[np.intp], NDArray[np.bool_]]]:
+    """Nearest neighbour in time from each endpoint of ``firsts``, with reversal and
+    precedence; the tours are built side by side, one stroke of each per step.
+
+    Endpoint ``e = 2 i + o`` enters stroke ``i`` (reversed when ``o`` is 1); the needle
+    leaves it at ``e ^ 1``. Endpoints of strokes drawn or blocked cost infinity more.
+    """
     n = len(costs.pts) // 2
-    visited = np.zeros(n, bool)
-    remaining = np.bincount(prec.region[prec.outline], minlength=prec.regions)
-    blocked = ~prec.outline & (remaining[prec.region] > 0) if prec.enabled else visited.copy()
-    fills_of = [np.flatnonzero((prec.region == r) & ~prec.outline) for r in range(prec.regions)]
-    seq = np.empty(n, np.intp)
-    rev = np.empty(n, bool)
-    cost = np.zeros((n, 2))
-    i, o = divmod(first, 2)
+    tours = len(firsts)
+    full = costs.matrix()
+    shut = np.zeros((tours, 2 * n))  # + inf: stroke drawn, or a fill waiting for outlines
+    shut_strokes = shut.reshape(tours, n, 2)
+    remaining = np.tile(np.bincount(prec.region[prec.outline], minlength=prec.regions),
+                        (tours, 1))
+    fill_ends: list[NDArray[np.intp]] = []
+    outline_end = np.repeat(prec.outline, 2) if prec.enabled else np.zeros(2 * n, bool)
+    if prec.enabled:
+        shut[:, np.repeat(~prec.outline & (remaining[0][prec.region] > 0), 2)] = np.inf
+        for r in range(prec.regions):
+            fills = np.flatnonzero((prec.region == r) & ~prec.outline)
+            fill_ends.append(np.sort(np.concatenate([2 * fills, 2 * fills + 1])))
+    visits = np.empty((n, tours), np.intp)
+    tt = np.arange(tours)
+    e = np.asarray(firsts, dtype=np.intp)
     for k in range(n):
         if k > 0:
-            cost[:] = costs.from_endpoint(2 * i + 1 - o).reshape(n, 2)  # from the last exit
-            cost[visited | blocked] = np.inf
-            i, o = divmod(int(np.argmin(cost)), 2)
-        seq[k], rev[k] = i, bool(o)
-        visited[i] = True
-        if prec.enabled and prec.outline[i]:
-            r = prec.region[i]
-            remaining[r] -= 1
-            if remaining[r] == 0:
-                blocked[fills_of[r]] = False
-    return seq, rev
+            cost = full[e ^ 1] if full is not None else np.stack(
+                [costs.from_endpoint(int(x)) for x in e ^ 1])
+            e = (cost + shut).argmin(axis=1)
+        visits[k] = e
+        shut_strokes[tt, e >> 1] = np.inf
+        if outline_end[e].any():
+            for t in np.flatnonzero(outline_end[e]):
+                r = prec.region[e[t] >> 1]
+                remaining[t, r] -= 1
+                if remaining[t, r] == 0:
+                    shut[t, fill_ends[r]] = 0.0
+    return [(visits[:, t] >> 1, (visits[:, t] & 1).astype(bool)) for t in range(tours)]
 
 
 def _two_opt(
@@ -193,6 +246,7 @@ def _two_opt(
     if n < 2:
         return seq, rev, passes, moves
     src, dst, corr = costs.corrections()
+    lifts = costs.lifts()
     jj = np.arange(n)
     while passes < max_passes:
         passes += 1
@@ -217,21 +271,36 @@ def _two_opt(
         ex, en = costs.pts[exit_], costs.pts[entry]
         best = np.full(n, np.inf)
         best_j = np.zeros(n, np.intp)
-        for i0 in range(0, n, _BLOCK_ROWS):
-            ii = np.arange(i0, min(n, i0 + _BLOCK_ROWS))
-            prev = ex[np.maximum(ii - 1, 0)]
-            a = costs.lift(np.hypot(prev[:, :1] - ex[:, 0], prev[:, 1:] - ex[:, 1]))
+        block = _BLOCK_ROWS if lifts is None else _TRIANGLE_BLOCK_ROWS
+        for i0 in range(0, n, block):
+            ii = np.arange(i0, min(n, i0 + block))
+            # the moves of these rows end in columns j in [i0, max reach): the others are
+            # never allowed (j < i, or past the reach), so they are not scored
+            j1 = int(reach[ii].max())
+            cols = jj[i0:j1]
+            if lifts is not None:  # the same lift costs, looked up
+                a = lifts[exit_[np.maximum(ii - 1, 0)]][:, exit_[cols]]
+            else:
+                prev = ex[np.maximum(ii - 1, 0)]
+                a = costs.lift(np.hypot(prev[:, :1] - ex[cols, 0], prev[:, 1:] - ex[cols, 1]))
             a[ii == 0] = 0.0
             b = np.zeros_like(a)
-            b[:, :-1] = costs.lift(
-                np.hypot(en[ii, :1] - en[1:, 0], en[ii, 1:] - en[1:, 1])
-            )
-            d = a + b - t_prev[ii, None] - t_next[None, :]
+            inner = cols[cols < n - 1]
+            if lifts is not None:
+                b[:, : len(inner)] = lifts[entry[ii]][:, entry[inner + 1]]
+            else:
+                b[:, : len(inner)] = costs.lift(
+                    np.hypot(en[ii, :1] - en[inner + 1, 0], en[ii, 1:] - en[inner + 1, 1])
+                )
+            d = a + b - t_prev[ii, None] - t_next[None, cols]
             lo, hi = np.searchsorted(ci, [ii[0], ii[-1] + 1])
-            np.add.at(d, (ci[lo:hi] - i0, cj[lo:hi]), cc[lo:hi])
-            d[(jj[None, :] < ii[:, None]) | (jj[None, :] >= reach[ii, None])] = np.inf
-            best_j[ii] = d.argmin(axis=1)
-            best[ii] = d[np.arange(len(ii)), best_j[ii]]
+            in_cols = cj[lo:hi] < j1
+            np.add.at(d, (ci[lo:hi][in_cols] - i0, cj[lo:hi][in_cols] - i0),
+                      cc[lo:hi][in_cols])
+            d[(cols[None, :] < ii[:, None]) | (cols[None, :] >= reach[ii, None])] = np.inf
+            arg = d.argmin(axis=1)
+            best_j[ii] = i0 + arg
+            best[ii] = d[np.arange(len(ii)), arg]
         cand = np.flatnonzero(best < -_GAIN_TOL_S)
         if len(cand) == 0:
             break
@@ -248,41 +317,96 @@ def _two_opt(
     return seq, rev, passes, moves
 
 
+_SeamCosts = dict[tuple[int, float, float], NDArray[np.float64]]
+
+
+def _ring_costs(
+    drawing: Drawing, mask: InkMask, params: ToolpathParams, costs: TransitionCosts,
+    wanted: list[tuple[int, float, float]], cache: _SeamCosts,
+) -> None:
+    """Fill ``cache[(s, x, y)]``: the cost between the point (x, y) and every vertex of
+    the ring of outline ``s`` (a drag where :func:`can_drag` allows it, else a lift),
+    for the keys not there yet, all in one batch."""
+    todo = [key for key in dict.fromkeys(wanted) if key not in cache]
+    if not todo:
+        return
+    vb, verts = drawing.bounds, drawing.vertices
+    s = np.array([key[0] for key in todo], dtype=np.intp)
+    q_all = np.array([key[1:] for key in todo], dtype=np.float64)
+    ring_n = vb[s + 1] - vb[s] - 1
+    rb = np.concatenate([[0], np.cumsum(ring_n)]).astype(np.intp)
+    owner = np.repeat(np.arange(len(todo)), ring_n)
+    ring = verts[vb[s][owner] + np.arange(int(rb[-1])) - rb[:-1][owner]]
+    q = q_all[owner]
+    d = ring - q
+    dist = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1])  # as np.linalg.norm(axis=1)
+    c = costs.lift(dist)
+    near = np.flatnonzero(dist <= params.drag_max_mm)
+    drag = near[can_drag(mask, q[near], ring[near], params.drag_max_mm)]
+    c[drag] = dist[drag] * (1.0 / params.feed_mark_mm_s)
+    for k, key in enumerate(todo):
+        cache[key] = c[rb[k] : rb[k + 1]]
+
+
 def _optimise_seams(
     drawing: Drawing, seq: NDArray[np.intp], rev: NDArray[np.bool_], seam: NDArray[np.intp],
     mask: InkMask, params: ToolpathParams, costs: TransitionCosts,
+    cache: _SeamCosts | None = None,
 ) -> NDArray[np.intp]:
-    """Per closed outline (by stroke), the vertex minimising the move in plus the move out."""
+    """Per closed outline (by stroke), the vertex minimising the move in plus the move out.
+
+    The outlines are taken in drawing order, each seeing the seam already chosen for the
+    stroke before it; all outlines that follow a run of ``w`` outlines are settled together
+    in wave ``w`` (no loop over vertices). ``cache`` keeps the cost of each ring from each
+    point across calls (the rounds of :func:`optimise_order` see mostly the same ones).
+    """
+    cache = {} if cache is None else cache
     seam = seam.copy()
     pts = costs.pts.copy()
     entry, exit_ = _ends(seq, rev)
-    inv_mark = 1.0 / params.feed_mark_mm_s
-    for k, s in enumerate(seq):
-        stroke = drawing.strokes[int(s)]
-        if not stroke.closed:
-            continue
-        ring = stroke.path_mm[:-1]
-        total = np.zeros(len(ring))
-        for q in ([pts[exit_[k - 1]]] if k > 0 else []) + (
-            [pts[entry[k + 1]]] if k + 1 < len(seq) else []
-        ):
-            dist = np.linalg.norm(ring - q, axis=1)
-            c = costs.lift(dist)
-            near = np.flatnonzero(dist <= params.drag_max_mm)
-            drag = near[can_drag(mask, np.broadcast_to(q, (len(near), 2)), ring[near],
-                                 params.drag_max_mm)]
-            c[drag] = dist[drag] * inv_mark
-            total += c
-        best = int(np.argmin(total))
-        if total[best] < total[int(seam[s]) % len(ring)] - _GAIN_TOL_S:
-            seam[s] = best
-            pts[2 * s] = pts[2 * s + 1] = ring[best]
+    n = len(seq)
+    closed = drawing.closed[seq]
+    vb, verts = drawing.bounds, drawing.vertices
+    # wave of each outline: how many outlines come right before it
+    run = np.zeros(n, np.intp)
+    for k in range(1, n):  # cheap: integers only
+        run[k] = run[k - 1] + 1 if closed[k - 1] else 0
+    for wave in range(int(run[closed].max(initial=-1)) + 1):
+        pos = np.flatnonzero(closed & (run == wave))
+        s = seq[pos]
+        sides: list[list[tuple[int, float, float]]] = []
+        for k, sk in zip(pos.tolist(), s.tolist(), strict=True):
+            near_pts = ([pts[exit_[k - 1]]] if k > 0 else []) + (
+                [pts[entry[k + 1]]] if k + 1 < n else [])
+            sides.append([(sk, float(p[0]), float(p[1])) for p in near_pts])
+        _ring_costs(drawing, mask, params, costs, [key for ks in sides for key in ks], cache)
+        ring_n = vb[s + 1] - vb[s] - 1
+        totals = []
+        for keys, size in zip(sides, ring_n.tolist(), strict=True):
+            total = np.zeros(size)
+            for key in keys:  # in, then out: as the sum is taken
+                total += cache[key]
+            totals.append(total)
+        total = np.concatenate(totals)
+        rb = np.concatenate([[0], np.cumsum(ring_n)]).astype(np.intp)
+        owner = np.repeat(np.arange(len(pos)), ring_n)
+        local = np.arange(int(rb[-1])) - rb[:-1][owner]
+        # per outline: the first vertex of least total, kept if it beats the current seam
+        low = np.minimum.reduceat(total, rb[:-1]) if len(total) else total
+        at_low = np.flatnonzero(total == low[owner])
+        _, first = np.unique(owner[at_low], return_index=True)  # the first one wins
+        best = local[at_low[first]]
+        current = total[rb[:-1] + seam[s] % ring_n]
+        better = low < current - _GAIN_TOL_S
+        seam[s[better]] = best[better]
+        chosen = verts[vb[s[better]] + best[better]]
+        pts[2 * s[better]] = pts[2 * s[better] + 1] = chosen
     return seam
 
 
 def optimise_order(
     drawing: Drawing, mask: InkMask, params: ToolpathParams, max_passes: int = MAX_PASSES,
-    rounds: int = 3,
+    rounds: int = 3, laps: Laps | None = None,
 ) -> OrderResult:
     """Order the strokes to cut the time between them (see the module docstring).
 
@@ -294,18 +418,24 @@ def optimise_order(
             drawing gives the same order on any machine; the built-in emblem converges in
             far fewer).
         rounds: at most this many rounds of 2-opt then seams.
+        laps: books the time spent on the costs (``costs``) and on the search
+            (``ordering``).
 
     Returns:
         The order and its figures.
     """
     t0 = time.perf_counter()
+    laps = laps or Laps()
     n = len(drawing.strokes)
     prec = _Precedence(drawing, params.outlines_first)
     seam = np.zeros(n, np.intp)
+    laps.lap("ordering")
     costs = TransitionCosts(_endpoints(drawing, seam), mask, params)
+    laps.lap("costs")
     original = original_order(drawing)
     original_cost = float(_transitions(costs, original.sequence, original.reverse).sum())
     if n < 2:
+        laps.lap("ordering")
         return OrderResult(original, original_cost, original_cost, original_cost, 0, 0, 0,
                            True, time.perf_counter() - t0)
 
@@ -315,22 +445,25 @@ def optimise_order(
     p = costs.pts[ids]
     starts = {int(ids[np.argmin(p[:, 0])]), int(ids[np.argmax(p[:, 0])]),
               int(ids[np.argmin(p[:, 1])]), int(ids[np.argmax(p[:, 1])])}
-    tours, tour_costs = [], []
-    for first in sorted(starts):  # at most four: the extremes in u and v
-        tours.append(_greedy(costs, prec, first))
-        tour_costs.append(float(_transitions(costs, *tours[-1]).sum()))
+    tours = _greedy(costs, prec, sorted(starts))  # at most four: the extremes in u and v
+    tour_costs = [float(_transitions(costs, *tour).sum()) for tour in tours]
     seq, rev = tours[int(np.argmin(tour_costs))]
     greedy_cost = min(tour_costs)
 
     passes = moves = 0
+    seam_cache: _SeamCosts = {}
     for _ in range(rounds):
         seq, rev, p_, m_ = _two_opt(costs, seq, rev, prec, max_passes - passes)
         passes, moves = passes + p_, moves + m_
-        new_seam = _optimise_seams(drawing, seq, rev, seam, mask, params, costs)
+        new_seam = _optimise_seams(drawing, seq, rev, seam, mask, params, costs, seam_cache)
         changed = not np.array_equal(new_seam, seam)
         seam = new_seam
         if changed:
-            costs = TransitionCosts(_endpoints(drawing, seam), mask, params)
+            laps.lap("ordering")
+            pts = _endpoints(drawing, seam)
+            moved = np.any(pts != costs.pts, axis=1)
+            costs = TransitionCosts(pts, mask, params, reuse=costs, moved=moved)
+            laps.lap("costs")
         if not changed or passes >= max_passes:
             break
     cost = float(_transitions(costs, seq, rev).sum())
@@ -339,5 +472,6 @@ def optimise_order(
     if kept:
         ours, cost = original, original_cost
     open_rev = int((ours.reverse & (drawing.kinds[ours.sequence] == StrokeKind.FILL)).sum())
+    laps.lap("ordering")
     return OrderResult(ours, cost, greedy_cost, original_cost, passes, moves, open_rev, kept,
                        time.perf_counter() - t0)

@@ -26,11 +26,25 @@ from numpy.typing import NDArray
 from tattotronix.art.grid import InkMask
 from tattotronix.path.costs import SAME_POINT_MM, can_drag
 from tattotronix.path.params import ToolpathParams
-from tattotronix.path.polyline import resample
+from tattotronix.path.polyline import resample_many
 
-__all__ = ["APPROACH", "MARK", "TRAVEL", "Path3D", "build_path"]
+__all__ = ["APPROACH", "MARK", "TRAVEL", "Path3D", "build_path", "build_path_flat",
+           "step_lengths"]
 
 from tattotronix.path.kinds import APPROACH, MARK, TRAVEL
+
+
+def step_lengths(points: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(N - 1,) lengths of the steps between consecutive points, (N, 2) or (N, 3).
+
+    The very values of ``np.linalg.norm(np.diff(points, axis=0), axis=1)`` (the squares
+    summed in the same order), without its slow reduction over a short axis.
+    """
+    d = points[1:] - points[:-1]
+    sq = d[:, 0] * d[:, 0]
+    for c in range(1, d.shape[1]):
+        sq += d[:, c] * d[:, c]
+    return np.sqrt(sq)
 
 
 @dataclass(frozen=True)
@@ -68,41 +82,91 @@ def build_path(
     Returns:
         The path.
     """
-    reach = params.drag_max_mm if drag_max_mm is None else drag_max_mm
     if not strokes:
+        return build_path_flat(np.zeros((0, 2)), np.zeros(1, np.intp), mask, params, drag_max_mm)
+    bounds = np.concatenate([[0], np.cumsum([len(s) for s in strokes])]).astype(np.intp)
+    return build_path_flat(np.concatenate(strokes), bounds, mask, params, drag_max_mm)
+
+
+def build_path_flat(
+    points: NDArray[np.float64], bounds: NDArray[np.intp], mask: InkMask,
+    params: ToolpathParams, drag_max_mm: float | None = None,
+) -> Path3D:
+    """:func:`build_path` of strokes laid out one after the other (no loop per stroke).
+
+    Args:
+        points: (M, 2) the resampled points of every stroke in drawing order, mm.
+        bounds: (n + 1,) stroke ``k`` is ``points[bounds[k]:bounds[k + 1]]`` (at least one
+            point each).
+        mask: the ink mask (drags must stay on ink).
+        params: lift geometry and the resampling step.
+        drag_max_mm: as for :func:`build_path`.
+
+    Returns:
+        The path, equal to what :func:`build_path` makes of the same strokes.
+    """
+    reach = params.drag_max_mm if drag_max_mm is None else drag_max_mm
+    n = len(bounds) - 1
+    if n <= 0:
         return Path3D(np.zeros((0, 3)), np.zeros(0, np.int8), np.zeros(0, np.int32), 0)
-    ends = np.array([s[-1] for s in strokes[:-1]]).reshape(-1, 2)
-    starts = np.array([s[0] for s in strokes[1:]]).reshape(-1, 2)
+    pts = np.asarray(points, dtype=np.float64)
+    m = np.diff(bounds)
+    ends = pts[bounds[1:-1] - 1]  # (n - 1, 2): where the needle is after stroke k
+    starts = pts[bounds[1:-1]]  # (n - 1, 2): where stroke k + 1 starts
     stay = can_drag(mask, ends, starts, reach)
 
+    # the drag across each gap crossed with the needle down, resampled like a stroke
+    drag_k = np.flatnonzero(stay)
+    gap_b = 2 * np.arange(len(drag_k) + 1, dtype=np.intp)
+    gap_src = np.empty((2 * len(drag_k), 2))
+    gap_src[0::2], gap_src[1::2] = ends[drag_k], starts[drag_k]
+    gap_pts, gap_ob = resample_many(gap_src, gap_b, params.step_mm)
+    gap_n = np.maximum(np.diff(gap_ob) - 2, 0)  # the inner points only
+
+    down = np.concatenate([[False], stay])  # stroke k is reached with the needle down
+    retract = np.concatenate([[False], ~stay])  # stroke k starts with a retract of k - 1
+    pre = np.where(down, 0, 3 + retract)
+    pre[down] = gap_n
+    size = pre + m
+    off = np.concatenate([[0], np.cumsum(size)])
+    total = int(off[-1]) + 1
     z_clear, z_app, z_mark = params.clearance_mm, params.approach_z_mm, params.mark_z_mm
-    xy: list[NDArray[np.float64]] = []
-    z: list[NDArray[np.float64]] = []
-    kind: list[NDArray[np.int8]] = []
-    idx: list[NDArray[np.int32]] = []
+    uvz = np.empty((total, 3))
+    uvz[:, 2] = z_mark
+    kind = np.full(total, MARK, np.int8)
+    idx = np.empty(total, np.int32)
 
-    def put(p: NDArray[np.float64], zz: float | NDArray[np.float64], k: int, s: int) -> None:
-        p = np.atleast_2d(p)
-        xy.append(p)
-        z.append(np.broadcast_to(np.asarray(zz, dtype=np.float64), (len(p),)))
-        kind.append(np.full(len(p), k, np.int8))
-        idx.append(np.full(len(p), s, np.int32))
+    # the strokes' own points
+    shift = off[:-1] + pre - bounds[:-1]  # row in the path - row in ``points``
+    dest = np.arange(int(bounds[-1])) + np.repeat(shift, m)
+    uvz[dest, :2] = pts
+    idx[dest] = np.repeat(np.arange(n, dtype=np.int32), m)
+    # retracts: the previous stroke's end at clearance
+    r = np.flatnonzero(retract)
+    at = off[r]
+    uvz[at, :2] = pts[bounds[r] - 1]
+    uvz[at, 2] = z_clear
+    kind[at] = TRAVEL
+    idx[at] = r - 1
+    # plunges: over the start at clearance, at the approach start, then down (approach)
+    p = np.flatnonzero(~down)
+    at = off[p] + retract[p]
+    for i, (zz, kk) in enumerate(((z_clear, TRAVEL), (z_app, TRAVEL), (z_mark, APPROACH))):
+        uvz[at + i, :2] = pts[bounds[p]]
+        uvz[at + i, 2] = zz
+        kind[at + i] = kk
+        idx[at + i] = p
+    # drags: the inner points of each gap, marking, belonging to the stroke they lead to
+    if len(drag_k):
+        gk = drag_k + 1
+        g_owner = np.repeat(np.arange(len(drag_k)), gap_n)
+        g_rel = np.arange(int(gap_n.sum())) - np.repeat(np.cumsum(gap_n) - gap_n, gap_n)
+        uvz[off[gk][g_owner] + g_rel, :2] = gap_pts[gap_ob[:-1][g_owner] + 1 + g_rel]
+        idx[off[gk][g_owner] + g_rel] = gk[g_owner]
+    # the final retract
+    uvz[-1, :2], uvz[-1, 2], kind[-1], idx[-1] = pts[-1], z_clear, TRAVEL, n - 1
 
-    for s, pts in enumerate(strokes):
-        if s > 0 and stay[s - 1]:
-            gap = resample(np.vstack([ends[s - 1], pts[0]]), params.step_mm)[1:-1]
-            if len(gap):
-                put(gap, z_mark, MARK, s)
-        else:
-            if s > 0:
-                put(ends[s - 1], z_clear, TRAVEL, s - 1)
-            put(np.repeat(pts[:1], 2, axis=0), np.array([z_clear, z_app]), TRAVEL, s)
-            put(pts[0], z_mark, APPROACH, s)
-        put(pts, z_mark, MARK, s)
-    put(strokes[-1][-1], z_clear, TRAVEL, len(strokes) - 1)
-
-    uvz = np.column_stack([np.concatenate(xy), np.concatenate(z)])
-    k, i = np.concatenate(kind), np.concatenate(idx)
-    keep = np.concatenate([[True], np.linalg.norm(np.diff(uvz, axis=0), axis=1) > SAME_POINT_MM])
-    gaps = np.linalg.norm(starts - ends, axis=1) > SAME_POINT_MM
-    return Path3D(uvz[keep], k[keep], i[keep], int((stay & gaps).sum()))
+    keep = np.concatenate([[True], step_lengths(uvz) > SAME_POINT_MM])
+    d = starts - ends
+    gaps = np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) > SAME_POINT_MM
+    return Path3D(uvz[keep], kind[keep], idx[keep], int((stay & gaps).sum()))

@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,13 +24,16 @@ from numpy.typing import NDArray
 from tattotronix.art.grid import InkMask
 from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
-from tattotronix.path.fill import MIN_RUN_PX
-from tattotronix.path.order import MAX_PASSES, Order, OrderResult, optimise_order, original_order
+from tattotronix.path.fill import MIN_RUN_PX, hatch
+from tattotronix.path.laps import Laps
+from tattotronix.path.order import MAX_PASSES, Order, OrderResult, optimise_order
 from tattotronix.path.panel import check_fits, to_arm
 from tattotronix.path.params import ToolpathParams
-from tattotronix.path.path3d import Path3D, build_path
-from tattotronix.path.strokes import Drawing, build_drawing
-from tattotronix.path.timing import PathMetrics, measure, timestamps
+from tattotronix.path.path3d import Path3D, build_path_flat
+from tattotronix.path.polyline import resample_many
+from tattotronix.path.regions import find_regions
+from tattotronix.path.strokes import Drawing, assemble_drawing
+from tattotronix.path.timing import PathMetrics, measure, segment_lengths, timestamps
 
 __all__ = ["MAX_FILL_CELLS", "MAX_POINTS", "MAX_STROKES", "Toolpath", "check_fill_budget",
            "check_order_budget", "check_points_budget", "plan_toolpath"]
@@ -110,8 +114,7 @@ def check_points_budget(drawing: Drawing, params: ToolpathParams) -> None:
     Raises:
         TattotronixError: over budget; the message gives the count and what to raise.
     """
-    lengths = np.array([float(np.linalg.norm(np.diff(s.path_mm, axis=0), axis=1).sum())
-                        for s in drawing.strokes])
+    lengths = _stroke_lengths(drawing)
     points = int(np.floor(lengths / params.step_mm).sum()) + 2 * len(lengths)
     if points > MAX_POINTS:
         raise TattotronixError(
@@ -119,6 +122,18 @@ def check_points_budget(drawing: Drawing, params: ToolpathParams) -> None:
             f"{lengths.sum():.0f} mm of strokes, over the toolpath's budget of {MAX_POINTS} "
             f"(the trajectory stage holds ~2.2 kB a point: ~{_gib(points * 2200)}): raise "
             "toolpath.step_mm")
+
+
+def _stroke_lengths(drawing: Drawing) -> NDArray[np.float64]:
+    """(n,) chord length of each stroke's vertices, mm (summed per stroke as ``np.sum``)."""
+    v, vb = drawing.vertices, drawing.bounds
+    seg = np.linalg.norm(np.diff(v, axis=0), axis=1)
+    out = np.zeros(len(vb) - 1)
+    for size in np.unique(np.diff(vb)):  # strokes of one vertex count: one row each
+        rows = np.flatnonzero(np.diff(vb) == size)
+        if size > 1:
+            out[rows] = seg[vb[rows][:, None] + np.arange(size - 1)].sum(axis=1)
+    return out
 
 
 @dataclass(frozen=True)
@@ -134,6 +149,9 @@ class Toolpath:
         metrics: figures of our path.
         original: figures of the path under the original's ordering rule.
         ordering: how the order was found.
+        timings_s: wall time of each step of the planning, s (``checks``, ``regions``,
+            ``fill``, ``resample``, ``costs``, ``ordering``, ``original``, ``path``,
+            ``metrics``); for the benchmark and the logs, never part of the plan.
     """
 
     drawing: Drawing
@@ -144,6 +162,7 @@ class Toolpath:
     metrics: PathMetrics
     original: PathMetrics
     ordering: OrderResult
+    timings_s: Mapping[str, float] = field(default_factory=dict, compare=False)
 
     def metrics_dict(self) -> JsonDict:
         """The metrics file: our figures, the original ordering's, and the ratios."""
@@ -197,9 +216,18 @@ def plan_toolpath(mask: InkMask, params: ToolpathParams, max_passes: int = MAX_P
         TattotronixError: the drawing does not fit the panel, has no ink region to draw,
             or would take more work than the budget (:func:`check_fill_budget`, ...).
     """
+    laps = Laps()
     check_fits(mask, params)
     check_fill_budget(mask, params)
-    drawing = build_drawing(mask, params)
+    laps.lap("checks")
+    labels, regions = find_regions(
+        mask.ink, mask.res_mm, params.min_region_mm2, params.min_loop_px
+    )
+    laps.lap("regions")
+    fill = hatch(labels, mask.xs, mask.ys, mask.res_mm, params.pitch_mm)
+    laps.lap("fill")
+    drawing = assemble_drawing(mask, regions, fill)
+    laps.lap("regions")
     if not drawing.strokes:
         raise TattotronixError(
             f"the mask has no ink region of at least {params.min_region_mm2} mm^2 "
@@ -207,18 +235,28 @@ def plan_toolpath(mask: InkMask, params: ToolpathParams, max_passes: int = MAX_P
         )
     check_order_budget(len(drawing.strokes), params)
     check_points_budget(drawing, params)
-    result = optimise_order(drawing, mask, params, max_passes=max_passes)
-    path = build_path(result.order.points(drawing, params.step_mm), mask, params)
-    baseline = build_path(
-        original_order(drawing).points(drawing, params.step_mm), mask, params, math.inf
-    )
-    t = timestamps(path, params)
-    ours, orig = measure(path, params), measure(baseline, params)
+    laps.lap("checks")
+    result = optimise_order(drawing, mask, params, max_passes=max_passes, laps=laps)
+    laps.skip()
+    # every stroke resampled once as drawn in the original's order; ours reuses the strokes
+    # it draws the same way
+    canonical = resample_many(drawing.vertices, drawing.bounds, params.step_mm)
+    pts, bounds = result.order.resampled(drawing, params.step_mm, canonical)
+    laps.lap("resample")
+    path = build_path_flat(pts, bounds, mask, params)
+    laps.lap("path")
+    baseline = build_path_flat(*canonical, mask, params, math.inf)
+    orig = measure(baseline, params)
+    laps.lap("original")
+    seg = segment_lengths(path.uvz_mm)
+    t = timestamps(path, params, seg)
+    ours = measure(path, params, t, seg)
+    xyz = to_arm(path.uvz_mm, params)
+    laps.lap("metrics")
     log.info(
         "ordered %d strokes in %.2f s (%d 2-opt passes): %.1f s between strokes, "
         "%.1f s greedy, %.1f s in the original's order",
         len(drawing.strokes), result.elapsed_s, result.passes, result.cost_s,
         result.greedy_cost_s, result.original_cost_s,
     )
-    return Toolpath(drawing, result.order, path, t, to_arm(path.uvz_mm, params), ours, orig,
-                    result)
+    return Toolpath(drawing, result.order, path, t, xyz, ours, orig, result, laps.seconds)

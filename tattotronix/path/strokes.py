@@ -9,17 +9,24 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import IntEnum
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.art.grid import InkMask
-from tattotronix.path.fill import hatch
+from tattotronix.path.fill import Hatch, hatch
 from tattotronix.path.params import ToolpathParams
-from tattotronix.path.polyline import close, resample, rotate_closed, smooth_closed
-from tattotronix.path.regions import find_regions
+from tattotronix.path.polyline import (
+    _EPS_MM,
+    SMOOTH_MIN_POINTS,
+    SMOOTH_PASSES,
+    resample,
+    rotate_closed,
+)
+from tattotronix.path.regions import Region, find_regions
 
-__all__ = ["Drawing", "Stroke", "StrokeKind", "build_drawing"]
+__all__ = ["Drawing", "Stroke", "StrokeKind", "assemble_drawing", "build_drawing"]
 
 
 class StrokeKind(IntEnum):
@@ -85,21 +92,66 @@ class Drawing:
     holes: int
     dropped_loops: int
 
-    @property
+    @cached_property
     def kinds(self) -> NDArray[np.int8]:
         """(n,) stroke kinds."""
         return np.array([s.kind for s in self.strokes], dtype=np.int8)
 
-    @property
+    @cached_property
     def region_of(self) -> NDArray[np.intp]:
         """(n,) region index of each stroke."""
         return np.array([s.region for s in self.strokes], dtype=np.intp)
 
+    @cached_property
+    def closed(self) -> NDArray[np.bool_]:
+        """(n,) whether each stroke is a closed loop (an outline)."""
+        return self.kinds != StrokeKind.FILL
 
-def _loop_mm(mask: InkMask, loop_px: NDArray[np.int32]) -> NDArray[np.float64]:
-    """Pixel loop -> smoothed closed polyline in mm."""
-    pts = np.column_stack([mask.xs[loop_px[:, 1]], mask.ys[loop_px[:, 0]]])
-    return close(smooth_closed(pts))
+    @cached_property
+    def vertices(self) -> NDArray[np.float64]:
+        """(N, 2) every stroke's vertices, one stroke after the other, mm."""
+        if not self.strokes:
+            return np.zeros((0, 2))
+        return np.concatenate([s.path_mm for s in self.strokes])
+
+    @cached_property
+    def bounds(self) -> NDArray[np.intp]:
+        """(n + 1,) stroke ``i`` is ``vertices[bounds[i]:bounds[i + 1]]``."""
+        sizes = np.array([len(s.path_mm) for s in self.strokes], dtype=np.intp)
+        return np.concatenate([[0], np.cumsum(sizes)]).astype(np.intp)
+
+
+def _loops_mm(mask: InkMask, loops: list[NDArray[np.int32]]
+              ) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """Pixel loops -> smoothed closed polylines in mm, all at once (as :func:`smooth_closed`
+    then :func:`close` would make each), laid out one after the other with their bounds."""
+    if not loops:
+        return np.zeros((0, 2)), np.zeros(1, np.intp)
+    px = np.concatenate(loops)
+    n = np.array([len(lp) for lp in loops], dtype=np.intp)
+    lb = np.concatenate([[0], np.cumsum(n)])
+    p = np.column_stack([mask.xs[px[:, 1]], mask.ys[px[:, 0]]])
+    # circular [1, 2, 1] / 4 passes on the loops of SMOOTH_MIN_POINTS or more
+    start, size = np.repeat(lb[:-1], n), np.repeat(n, n)
+    t = np.arange(len(p)) - start
+    prev = start + (t - 1) % size
+    nxt = start + (t + 1) % size
+    smooth = size >= SMOOTH_MIN_POINTS
+    sp, pv, nx = np.flatnonzero(smooth), prev[smooth], nxt[smooth]
+    for _ in range(SMOOTH_PASSES):
+        new = 0.25 * p[pv] + 0.5 * p[sp] + 0.25 * p[nx]
+        p[sp] = new
+    # close: repeat the first vertex unless the last one is (nearly) on it
+    first, last = p[lb[:-1]], p[lb[1:] - 1]
+    d = last - first
+    add = ~(np.sqrt(d[:, 0] * d[:, 0] + d[:, 1] * d[:, 1]) <= _EPS_MM)
+    out_n = n + add
+    ob = np.concatenate([[0], np.cumsum(out_n)]).astype(np.intp)
+    out = np.empty((int(ob[-1]), 2))
+    owner = np.repeat(np.arange(len(loops)), n)
+    out[ob[:-1][owner] + t] = p
+    out[ob[1:][add] - 1] = first[add]
+    return out, ob
 
 
 def build_drawing(mask: InkMask, params: ToolpathParams) -> Drawing:
@@ -116,18 +168,35 @@ def build_drawing(mask: InkMask, params: ToolpathParams) -> Drawing:
         mask.ink, mask.res_mm, params.min_region_mm2, params.min_loop_px
     )
     fill = hatch(labels, mask.xs, mask.ys, mask.res_mm, params.pitch_mm)
+    return assemble_drawing(mask, regions, fill)
+
+
+def assemble_drawing(mask: InkMask, regions: list[Region], fill: Hatch) -> Drawing:
+    """The strokes of traced regions (:func:`find_regions`) and their hatch
+    (:func:`hatch`), in the original's order (what :func:`build_drawing` returns)."""
     region_labels = np.array([r.label for r in regions], dtype=np.int32)
     lo = np.searchsorted(fill.label, region_labels, side="left")
     hi = np.searchsorted(fill.label, region_labels, side="right")
-    strokes: list[Stroke] = []
+    loops: list[NDArray[np.int32]] = []
+    loop_kind: list[StrokeKind] = []
+    loop_region: list[int] = []
     for i, region in enumerate(regions):
         if region.outer is not None:
-            strokes.append(Stroke(StrokeKind.OUTER, i, _loop_mm(mask, region.outer)))
-        strokes.extend(Stroke(StrokeKind.HOLE, i, _loop_mm(mask, h)) for h in region.holes)
-        strokes.extend(
-            Stroke(StrokeKind.FILL, i, np.vstack([fill.a_mm[j], fill.b_mm[j]]))
-            for j in range(lo[i], hi[i])
-        )
+            loops.append(region.outer)
+            loop_kind.append(StrokeKind.OUTER)
+            loop_region.append(i)
+        loops.extend(region.holes)
+        loop_kind.extend([StrokeKind.HOLE] * len(region.holes))
+        loop_region.extend([i] * len(region.holes))
+    loop_v, lb = _loops_mm(mask, loops)
+    fill_ab = np.stack([fill.a_mm, fill.b_mm], axis=1)  # (m, 2, 2): one fill stroke each
+    strokes: list[Stroke] = []
+    k = 0
+    for i in range(len(regions)):
+        while k < len(loops) and loop_region[k] == i:
+            strokes.append(Stroke(loop_kind[k], i, loop_v[lb[k] : lb[k + 1]]))
+            k += 1
+        strokes.extend(Stroke(StrokeKind.FILL, i, fill_ab[j]) for j in range(lo[i], hi[i]))
     return Drawing(
         strokes=tuple(strokes),
         regions=len(regions),

@@ -15,14 +15,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.path.params import ToolpathParams
-from tattotronix.path.path3d import APPROACH, MARK, TRAVEL, Path3D
+from tattotronix.path.path3d import APPROACH, MARK, TRAVEL, Path3D, step_lengths
 
 __all__ = ["PathMetrics", "measure", "segment_lengths", "timestamps"]
 
 
 def segment_lengths(uvz_mm: NDArray[np.float64]) -> NDArray[np.float64]:
     """(N-1,) segment lengths, mm."""
-    return np.linalg.norm(np.diff(uvz_mm, axis=0), axis=1)
+    return step_lengths(uvz_mm)
 
 
 def _marking(kind: NDArray[np.int8]) -> NDArray[np.bool_]:
@@ -34,12 +34,15 @@ def _slow(kind: NDArray[np.int8]) -> NDArray[np.bool_]:
     return _marking(kind) | (kind[:-1] == APPROACH) | (kind[1:] == APPROACH)
 
 
-def timestamps(path: Path3D, params: ToolpathParams) -> NDArray[np.float64]:
-    """(N,) planned time of each point, s, starting at 0."""
+def timestamps(path: Path3D, params: ToolpathParams,
+               seg: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+    """(N,) planned time of each point, s, starting at 0 (``seg``: the path's
+    :func:`segment_lengths`, if made already)."""
     if len(path.kind) == 0:
         return np.zeros(0)
     feed = np.where(_slow(path.kind), params.feed_mark_mm_s, params.feed_travel_mm_s)
-    return np.concatenate([[0.0], np.cumsum(segment_lengths(path.uvz_mm) / feed)])
+    seg = segment_lengths(path.uvz_mm) if seg is None else seg
+    return np.concatenate([[0.0], np.cumsum(seg / feed)])
 
 
 @dataclass(frozen=True)
@@ -68,15 +71,17 @@ class PathMetrics:
         return asdict(self)
 
 
-def measure(path: Path3D, params: ToolpathParams) -> PathMetrics:
-    """Measure a path: lengths, needle entries, planned time."""
+def measure(path: Path3D, params: ToolpathParams, t_s: NDArray[np.float64] | None = None,
+            seg: NDArray[np.float64] | None = None) -> PathMetrics:
+    """Measure a path: lengths, needle entries, planned time (``t_s``: its
+    :func:`timestamps`, ``seg``: its :func:`segment_lengths`, if made already)."""
     k = path.kind
-    seg = segment_lengths(path.uvz_mm)
+    seg = segment_lengths(path.uvz_mm) if seg is None else seg
     marking = _marking(k) if len(k) else np.zeros(0, bool)
     entries = int(((k[:-1] == TRAVEL) & (k[1:] != TRAVEL)).sum()) + int(
         len(k) > 0 and k[0] != TRAVEL
     )
-    t = timestamps(path, params)
+    t = timestamps(path, params, seg) if t_s is None else t_s
     return PathMetrics(
         points=int(len(k)),
         marked_mm=float(seg[marking].sum()),

@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from tattotronix.config.schema import PlantConfig
 from tattotronix.errors import TattotronixError
 
-__all__ = ["Plant", "PlantSettings", "has_display"]
+__all__ = ["EnginePid", "PidSpec", "Plant", "PlantSettings", "has_display"]
 
 Array = NDArray[np.float64]
 
@@ -52,6 +52,55 @@ class PlantSettings:
         if not (np.isfinite(s.damping) and s.damping >= 0):
             raise TattotronixError(f"plant.damping={s.damping}: give a damping >= 0 N m s/rad")
         return s
+
+
+@dataclass(frozen=True)
+class PidSpec:
+    """A joint PID the engine can run itself, every plant step (the shared controller's
+    law, docs/control.md, "The controller"; the engine path: "The loop inside the engine")::
+
+        I_k = I_{k-1} + dt (q_r - q)
+        tau = clamp(Kp (q_r - q) + Ki I_k + Kd (v_r - qd) + [G(q)], -limit, limit)
+
+    ``v_r`` is the reference rate (``qd_r``, derivative on the error) or zero (derivative
+    on the measurement); ``G(q)`` is the plant's own gravity at the measured ``q``.
+
+    Attributes:
+        kp: (n,) N m/rad. ki: (n,) N m/(rad s). kd: (n,) N m s/rad.
+        limit: (n,) torque limit, N m.
+        gravity: add G(q).
+    """
+
+    kp: Array
+    ki: Array
+    kd: Array
+    limit: Array
+    gravity: bool
+
+
+class EnginePid(ABC):
+    """A plant running a :class:`PidSpec` inside its engine, a stretch of steps per call."""
+
+    @abstractmethod
+    def reset(self, q: ArrayLike, qd: ArrayLike) -> None:
+        """Put the arm at ``q`` moving at ``qd``, the integral at zero."""
+
+    @abstractmethod
+    def run(self, q_ref: Array, v_ref: Array) -> tuple[Array, Array, Array]:
+        """Step once per row of the references ((m, n), rad and rad/s).
+
+        Returns:
+            ``q`` and ``qd`` at the start of each step, and the torque held over it
+            ((m, n) each); the state goes on from the end of the last step.
+        """
+
+    @abstractmethod
+    def state(self) -> tuple[Array, Array]:
+        """``(q, qd)`` now (copies)."""
+
+    @abstractmethod
+    def healthy(self) -> bool:
+        """False once the engine reported instability or the state is not finite."""
 
 
 class Plant(ABC):
@@ -98,6 +147,11 @@ class Plant(ABC):
     @abstractmethod
     def tip_pose(self) -> tuple[Array, Array]:
         """The tip's position (3,) m and rotation (3, 3) in the arm frame, now."""
+
+    def engine_pid(self, pid: PidSpec) -> EnginePid | None:
+        """The engine running ``pid`` itself, or None where it cannot (the default): the
+        closed loop then runs in Python, one :meth:`apply` and :meth:`step` per tick."""
+        return None
 
     def healthy(self) -> bool:
         """False once the state is not finite (or the engine reported instability)."""

@@ -36,7 +36,8 @@ from numpy.typing import NDArray
 from tattotronix.errors import StageInputMissing, TattotronixError
 
 __all__ = ["STANDARD_GRAVITY", "ArmModel", "MujocoArm", "PinocchioArm", "PybulletArm",
-           "load_mujoco", "load_pinocchio", "load_pybullet", "model_refused", "pinocchio_model",
+           "load_mujoco", "load_mujoco_spec", "load_pinocchio", "load_pybullet", "model_refused",
+           "pinocchio_model",
            "read_model"]
 
 #: the stage that writes the model files
@@ -174,6 +175,21 @@ def load_mujoco(mjcf: Path) -> Any:  # Any: mujoco.MjModel
     try:
         return mujoco.MjModel.from_xml_path(str(mjcf))
     except Exception as exc:  # mujoco raises ValueError for bad XML, and others
+        raise model_refused(mjcf, f"not an MJCF MuJoCo can read: {exc}") from None
+
+
+def load_mujoco_spec(mjcf: Path) -> Any:  # Any: mujoco.MjSpec
+    """The editable MuJoCo spec of the MJCF file (as :func:`load_mujoco`, before compiling).
+
+    Raises:
+        TattotronixError: as :func:`load_mujoco`.
+    """
+    import mujoco
+
+    read_model(mjcf)
+    try:
+        return mujoco.MjSpec.from_file(str(mjcf))
+    except Exception as exc:
         raise model_refused(mjcf, f"not an MJCF MuJoCo can read: {exc}") from None
 
 

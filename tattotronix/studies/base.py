@@ -48,18 +48,26 @@ from __future__ import annotations
 import json
 import logging
 import math
+import os
 from abc import ABC, abstractmethod
-from collections.abc import Iterator, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar, Literal
+from typing import TYPE_CHECKING, ClassVar, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.art.artwork import artwork_name
+from tattotronix.config.params import with_overrides
 from tattotronix.config.schema import Config, StudyConfig
-from tattotronix.control.drawing import ClosedLoop, Drawing, resolve_drawing, run_closed_loop
+from tattotronix.control.drawing import (
+    ClosedLoop,
+    Drawing,
+    resolve_drawing,
+    run_closed_loop,
+    warm_up,
+)
 from tattotronix.control.tracking import entry_times
 from tattotronix.errors import ConfigError, TattotronixError
 from tattotronix.io.artifacts import StudySeriesRecord, make_provenance
@@ -73,11 +81,29 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-__all__ = ["VERDICT_COLOUR", "WINDOWS", "Cases", "ClosedLoopStudy", "LegendLoc", "StudyCase",
+__all__ = ["VERDICT_COLOUR", "WINDOWS", "CaseResult", "Cases", "ClosedLoopStudy", "LegendLoc",
+           "StudyCase",
            "finish_figure", "int_label", "load_cases", "log_axes_with_twin", "setting",
            "sorted_by", "window_value"]
 
 log = logging.getLogger("tattotronix.studies")
+
+
+@dataclass(frozen=True)
+class CaseResult:
+    """A case that ran, before it is written (:meth:`ClosedLoopStudy.compute_case`).
+
+    Attributes:
+        name: the artwork. case: the case's name.
+        metrics: the case file's JSON. series: the sampled error series of each window.
+        provenance: the series file's provenance JSON.
+    """
+
+    name: str
+    case: str
+    metrics: JsonDict
+    series: dict[str, NDArray[np.generic]]
+    provenance: str
 
 
 @dataclass(frozen=True, eq=False)  # equal as mappings are
@@ -215,30 +241,31 @@ class ClosedLoopStudy(ABC):
 
     # --- the shared machinery ---------------------------------------------------------
 
-    def run_case(self, cfg: Config, out: Outputs) -> JsonDict:
-        """Run the case ``cfg`` describes; write its metrics and series.
+    def compute_case(self, cfg: Config, data: Path, suffix: str = "") -> CaseResult:
+        """Run the case ``cfg`` describes (nothing written).
 
-        Returns:
-            The case metrics (also written to ``data/metrics/<study>/<name>/<case>.json``).
+        Args:
+            cfg: the case's settings.
+            data: the data folder (the stored drawing and models).
+            suffix: added to the case's name (a by-hand sweep's other overrides).
 
         Raises:
             TattotronixError: whatever the drawing or run refuses.
         """
         name = artwork_name(cfg.artwork)
-        # a by-hand sweep over other keys (``-m plant.damping=0,0.01``) names them too
-        case = self.case_name(cfg) + out.sweep_suffix((*self.keys, *_NOT_A_CASE))
+        case = self.case_name(cfg) + suffix
         desc: RobotDescription = build_description(cfg.robot)
         chain = Chain.from_description(desc)
-        drawing = resolve_drawing(cfg, out.data, desc)
+        drawing = resolve_drawing(cfg, data, desc)
         plant_dt = self.plant_dt_s(cfg)
         settle = float(cfg.draw.settle_periods)
         windows: dict[str, JsonDict] = {}
-        series: dict[str, NDArray[Any]] = {}
+        series: dict[str, NDArray[np.generic]] = {}
         analysis: Mapping[str, object] = {}  # the loop facts (a LoopReport)
         controller: JsonDict = {}
         for window in self.windows:
             label = "whole" if window is None else str(window)
-            loop = run_closed_loop(cfg, out.data, desc, drawing, window=window,
+            loop = run_closed_loop(cfg, data, desc, drawing, window=window,
                                    plant_dt_s=plant_dt, progress=bool(cfg.draw.progress))
             m, s = _window_metrics(loop, chain, settle)
             m.update(self.window_metrics(loop))
@@ -246,9 +273,10 @@ class ClosedLoopStudy(ABC):
             series.update({f"{label}_{k}": v for k, v in s.items()})
             if not analysis:  # the loop facts of the first window (the whole drawing)
                 analysis, controller = loop.analysis, loop.controller.summary()
-            log.info("%s %s %s (%s): %s; settled %s / marking max %s um, peak %.3f N m",
-                     self.name, name, case, label, m["verdict"], _fmt(m["settled_mean_um"]),
-                     _fmt(m["marking_max_um"]), m["peak_torque_nm"])
+            log.info("%s %s %s (%s): %s; settled %s / marking max %s um, peak %.3f N m "
+                     "(%s loop, %.0fx real time)", self.name, name, case, label,
+                     m["verdict"], _fmt(m["settled_mean_um"]), _fmt(m["marking_max_um"]),
+                     m["peak_torque_nm"], loop.run.loop, loop.run.realtime_factor)
         record: dict[str, object] = {
             "study": self.name, "name": name, "case": case,
             "backend": str(setting(cfg, "backend")),
@@ -258,17 +286,72 @@ class ClosedLoopStudy(ABC):
             "controller": controller, "loop": analysis, **windows,
         }
         record.update(self.case_metrics(cfg, name, windows))
-        metrics = _json_dict(record)
-        out.write_json(out.path("metrics", self.name, name, f"{case}.json"), metrics)
-        StudySeriesRecord(series).save(
-            out.tmp_path(StudySeriesRecord.path(out.data, self.name, name, case)),
-            make_provenance(cfg, drawing.inputs))
-        return metrics
+        return CaseResult(name, case, _json_dict(record), series,
+                          make_provenance(cfg, drawing.inputs))
+
+    def write_case(self, out: Outputs, result: CaseResult) -> None:
+        """Write a case's metrics (``data/metrics/<study>/<name>/<case>.json``) and series
+        (``data/studies/<study>/<name>/<case>.npz``)."""
+        out.write_json(out.path("metrics", self.name, result.name, f"{result.case}.json"),
+                       result.metrics)
+        StudySeriesRecord(result.series).save(
+            out.tmp_path(StudySeriesRecord.path(out.data, self.name, result.name,
+                                                result.case)),
+            result.provenance)
+
+    def run_case(self, cfg: Config, out: Outputs) -> JsonDict:
+        """Run the case ``cfg`` describes; write its metrics and series.
+
+        Returns:
+            The case metrics (also written to ``data/metrics/<study>/<name>/<case>.json``).
+
+        Raises:
+            TattotronixError: whatever the drawing or run refuses.
+        """
+        # a by-hand sweep over other keys (``-m plant.damping=0,0.01``) names them too
+        result = self.compute_case(cfg, out.data,
+                                   out.sweep_suffix((*self.keys, *_NOT_A_CASE)))
+        self.write_case(out, result)
+        return result.metrics
+
+    def run_all(self, cfg: Config, out: Outputs, workers: int | None = None) -> list[str]:
+        """Run every configured case (:meth:`cases`) concurrently, one process per core
+        (forked, so nothing is imported again), and write them all; the study's folders
+        then hold exactly these cases (any other file there is removed).
+
+        Returns:
+            The case names, as configured.
+
+        Raises:
+            TattotronixError: a case refused (the message names it); nothing is written.
+            ConfigError: a configured case is named other than its settings name it.
+        """
+        configs = {case: with_overrides(cfg, overrides)
+                   for case, overrides in self.cases(cfg.study).items()}
+        for case, c in configs.items():
+            if self.case_name(c) != case:
+                raise ConfigError(f"the {self.name} case '{case}' runs as "
+                                  f"'{self.case_name(c)}': name it so in conf/study")
+        results = run_parallel(self.compute_case, configs, out.data, workers)
+        name = artwork_name(cfg.artwork)
+        folders = (out.path("metrics", self.name, name),
+                   StudySeriesRecord.path(out.data, self.name, name, "x").parent)
+        for folder, suffix in zip(folders, (".json", ".npz"), strict=True):
+            for stale in sorted(folder.glob(f"*{suffix}")) if folder.is_dir() else []:
+                if stale.stem not in configs:  # a hand run's case: not this stage's
+                    out.remove(stale)
+        for result in results:
+            self.write_case(out, result)
+        return list(configs)
 
     def stage_body(self, cfg: Config, out: Outputs) -> None:
-        """The study's stage: run the case the config describes. A study's script is
+        """The study's stage: every configured case with ``study.all_cases=true`` (what
+        dvc.yaml runs), else the case the config describes. A study's script is
         ``run_stage(STUDY.name, STUDY.stage_body)`` (:func:`tattotronix.stage.run_stage`)."""
-        self.run_case(cfg, out)
+        if cfg.study.all_cases:
+            self.run_all(cfg, out)
+        else:
+            self.run_case(cfg, out)
 
     def load_cases(self, data: Path, name: str) -> dict[str, StudyCase]:
         """Every stored case of this study on one artwork: case name -> metrics."""
@@ -279,6 +362,54 @@ def load_cases(data: Path, study: str, name: str) -> dict[str, StudyCase]:
     """Every stored case of a study on one artwork: case name -> the case."""
     folder = data / "metrics" / study / name
     return {p.stem: StudyCase.load(p, study) for p in sorted(folder.glob("*.json"))}
+
+
+# --- cases in parallel -------------------------------------------------------------------
+
+#: a case's run: (settings, data folder) -> the result
+CaseRun = Callable[[Config, Path], CaseResult]
+
+
+def _one(run: CaseRun, cfg: Config, data: Path) -> CaseResult | str:
+    """Run one case in a worker: its result, or the message of what it refused (our
+    errors carry their own arguments, so they travel back as text)."""
+    try:
+        return run(cfg, data)
+    except (TattotronixError, ConfigError) as exc:
+        return str(exc)
+
+
+def run_parallel(run: CaseRun, cases: Mapping[str, Config], data: Path,
+                 workers: int | None = None) -> list[CaseResult]:
+    """``run`` on every case's config, in a pool of ``workers`` forked processes (default: one
+    per core this process may use), in order.
+
+    The pool forks after the imports the cases share (:func:`warm_up`), so no worker
+    imports them again.
+
+    Raises:
+        TattotronixError: a case refused; the message names it (the first, in order).
+    """
+    if workers is None:
+        workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
+            os.cpu_count() or 1)
+    configs = list(cases.values())
+    workers = max(1, min(len(configs), workers))
+    if workers == 1:
+        outcomes: list[CaseResult | str] = [_one(run, c, data) for c in configs]
+    else:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        warm_up()  # the shared imports, once, before the fork
+        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")
+                                 ) as pool:
+            futures = [pool.submit(_one, run, c, data) for c in configs]
+            outcomes = [f.result() for f in futures]
+    for case, outcome in zip(cases, outcomes, strict=True):
+        if isinstance(outcome, str):
+            raise TattotronixError(f"case '{case}': {outcome}")
+    return [o for o in outcomes if not isinstance(o, str)]
 
 
 # --- config values -----------------------------------------------------------------------
@@ -312,12 +443,12 @@ def _drawing_figures(d: Drawing) -> JsonDict:
 
 
 def _window_metrics(loop: ClosedLoop, chain: Chain, settle_periods: float
-                    ) -> tuple[JsonDict, dict[str, NDArray[Any]]]:
+                    ) -> tuple[JsonDict, dict[str, NDArray[np.generic]]]:
     err = loop.errors(chain, settle_periods)
     m = loop.metrics(err)
     for k in (*_WALL_KEYS, "loop", "controller", "name", "backend", "drawing"):
         m.pop(k, None)
-    series: dict[str, NDArray[Any]] = {
+    series: dict[str, NDArray[np.generic]] = {
         "t": err.t, "error_um": (err.error_m * 1e6).astype(np.float32),
         "down": err.down, "settled": err.settled}
     return m, series

@@ -1,0 +1,355 @@
+"""The vectorised toolpath routines give exactly what the former per-item routines gave.
+
+Each former routine (one stroke, one outline, one greedy tour, one line at a time) is kept
+here as the reference; the library's vectorised one must agree with it bit for bit on
+random and on grid-aligned inputs (pixel centres, pixel edges and corners, where ties are).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Sequence
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from numpy.typing import NDArray
+
+import tattotronix.path.costs as costs_mod
+from tattotronix.art.grid import InkMask
+from tattotronix.config.schema import MaskConfig, PanelConfig, ToolpathConfig
+from tattotronix.path.costs import SAME_POINT_MM, TransitionCosts, can_drag
+from tattotronix.path.inklookup import lines_on_ink, lines_on_ink_sampled
+from tattotronix.path.order import (
+    _endpoints,
+    _ends,
+    _greedy,
+    _optimise_seams,
+    _Precedence,
+    _two_opt,
+    original_order,
+)
+from tattotronix.path.params import ToolpathParams
+from tattotronix.path.path3d import APPROACH, MARK, TRAVEL, Path3D, build_path, build_path_flat
+from tattotronix.path.plan import Toolpath, plan_toolpath
+from tattotronix.path.polyline import (
+    close,
+    oriented,
+    resample,
+    resample_many,
+    rotate_closed,
+    smooth_closed,
+)
+from tattotronix.path.strokes import Drawing, build_drawing
+
+RES = 0.25
+PARAMS = ToolpathParams.from_config(ToolpathConfig(), MaskConfig(), PanelConfig())
+
+
+# ---------------------------------------------------------------- the former routines
+
+
+def greedy_reference(costs: TransitionCosts, prec: _Precedence, first: int
+                     ) -> tuple[NDArray[np.intp], NDArray[np.bool_]]:
+    """One greedy tour, one stroke per step, as the planner did it before."""
+    n = len(costs.pts) // 2
+    visited = np.zeros(n, bool)
+    remaining = np.bincount(prec.region[prec.outline], minlength=prec.regions)
+    blocked = ~prec.outline & (remaining[prec.region] > 0) if prec.enabled else visited.copy()
+    fills_of = [np.flatnonzero((prec.region == r) & ~prec.outline) for r in range(prec.regions)]
+    seq, rev = np.empty(n, np.intp), np.empty(n, bool)
+    cost = np.zeros((n, 2))
+    i, o = divmod(first, 2)
+    for k in range(n):
+        if k > 0:
+            cost[:] = costs.from_endpoint(2 * i + 1 - o).reshape(n, 2)
+            cost[visited | blocked] = np.inf
+            i, o = divmod(int(np.argmin(cost)), 2)
+        seq[k], rev[k] = i, bool(o)
+        visited[i] = True
+        if prec.enabled and prec.outline[i]:
+            r = prec.region[i]
+            remaining[r] -= 1
+            if remaining[r] == 0:
+                blocked[fills_of[r]] = False
+    return seq, rev
+
+
+def seams_reference(
+    drawing: Drawing, seq: NDArray[np.intp], rev: NDArray[np.bool_], seam: NDArray[np.intp],
+    mask: InkMask, params: ToolpathParams, costs: TransitionCosts,
+) -> NDArray[np.intp]:
+    """Seams chosen one outline at a time, as the planner did it before."""
+    seam = seam.copy()
+    pts = costs.pts.copy()
+    entry, exit_ = _ends(seq, rev)
+    inv_mark = 1.0 / params.feed_mark_mm_s
+    for k, s in enumerate(seq):
+        stroke = drawing.strokes[int(s)]
+        if not stroke.closed:
+            continue
+        ring = stroke.path_mm[:-1]
+        total = np.zeros(len(ring))
+        for q in ([pts[exit_[k - 1]]] if k > 0 else []) + (
+            [pts[entry[k + 1]]] if k + 1 < len(seq) else []
+        ):
+            dist = np.linalg.norm(ring - q, axis=1)
+            c = costs.lift(dist)
+            near = np.flatnonzero(dist <= params.drag_max_mm)
+            drag = near[can_drag(mask, np.broadcast_to(q, (len(near), 2)), ring[near],
+                                 params.drag_max_mm)]
+            c[drag] = dist[drag] * inv_mark
+            total += c
+        best = int(np.argmin(total))
+        if total[best] < total[int(seam[s]) % len(ring)] - 1e-9:
+            seam[s] = best
+            pts[2 * s] = pts[2 * s + 1] = ring[best]
+    return seam
+
+
+def build_path_reference(strokes: Sequence[NDArray[np.float64]], mask: InkMask,
+                         params: ToolpathParams, drag_max_mm: float | None = None) -> Path3D:
+    """The 3-D path joined one stroke at a time, as the planner did it before."""
+    reach = params.drag_max_mm if drag_max_mm is None else drag_max_mm
+    ends = np.array([s[-1] for s in strokes[:-1]]).reshape(-1, 2)
+    starts = np.array([s[0] for s in strokes[1:]]).reshape(-1, 2)
+    stay = can_drag(mask, ends, starts, reach)
+    z_clear, z_app, z_mark = params.clearance_mm, params.approach_z_mm, params.mark_z_mm
+    xy: list[NDArray[np.float64]] = []
+    z: list[NDArray[np.float64]] = []
+    kind: list[NDArray[np.int8]] = []
+    idx: list[NDArray[np.int32]] = []
+
+    def put(p: NDArray[np.float64], zz: float | NDArray[np.float64], k: int, s: int) -> None:
+        p = np.atleast_2d(p)
+        xy.append(p)
+        z.append(np.broadcast_to(np.asarray(zz, dtype=np.float64), (len(p),)))
+        kind.append(np.full(len(p), k, np.int8))
+        idx.append(np.full(len(p), s, np.int32))
+
+    for s, pts in enumerate(strokes):
+        if s > 0 and stay[s - 1]:
+            gap = resample(np.vstack([ends[s - 1], pts[0]]), params.step_mm)[1:-1]
+            if len(gap):
+                put(gap, z_mark, MARK, s)
+        else:
+            if s > 0:
+                put(ends[s - 1], z_clear, TRAVEL, s - 1)
+            put(np.repeat(pts[:1], 2, axis=0), np.array([z_clear, z_app]), TRAVEL, s)
+            put(pts[0], z_mark, APPROACH, s)
+        put(pts, z_mark, MARK, s)
+    put(strokes[-1][-1], z_clear, TRAVEL, len(strokes) - 1)
+    uvz = np.column_stack([np.concatenate(xy), np.concatenate(z)])
+    k, i = np.concatenate(kind), np.concatenate(idx)
+    keep = np.concatenate([[True], np.linalg.norm(np.diff(uvz, axis=0), axis=1) > SAME_POINT_MM])
+    gaps = np.linalg.norm(starts - ends, axis=1) > SAME_POINT_MM
+    return Path3D(uvz[keep], k[keep], i[keep], int((stay & gaps).sum()))
+
+
+# ---------------------------------------------------------------- inputs
+
+
+@st.composite
+def polylines(draw: st.DrawFn) -> list[NDArray[np.float64]]:
+    """Polylines as the planner makes them: pixel loops smoothed and closed, fill
+    segments, and odd ones (repeated vertices, a single point, grid-aligned steps)."""
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    out = []
+    for _ in range(draw(st.integers(1, 12))):
+        kind = int(rng.integers(5))
+        n = int(rng.integers(1, 120))
+        if kind == 0:
+            p = rng.normal(size=(n, 2)) * rng.uniform(0.001, 50)
+        elif kind == 1:
+            walk = np.cumsum(rng.integers(-1, 2, size=(n, 2)), axis=0).astype(np.float64)
+            p = close(smooth_closed(walk * RES))
+        elif kind == 2:
+            p = np.repeat(rng.normal(size=(1, 2)), n, axis=0)
+        elif kind == 3:
+            p = np.array([[0.0, 0.0], [float(rng.choice([0.3, 0.15, 0.45, 1.2, 1e-10])), 0.0]])
+        else:
+            p = np.cumsum(rng.choice([0.25, 0.5, 0.75, 0.15], size=(n, 2)), axis=0)
+            p[rng.random(n) < 0.2] += 1e-10
+        out.append(p)
+    return out
+
+
+@st.composite
+def masks(draw: st.DrawFn, size: int = 96) -> InkMask:
+    """Unions of discs, rectangles and rings, with cuts (as in test_toolpath_props)."""
+    yy, xx = np.mgrid[0:size, 0:size]
+    ink = np.zeros((size, size), bool)
+    shape = st.tuples(st.sampled_from(["disc", "rect", "ring", "cut"]),
+                      st.integers(0, size - 1), st.integers(0, size - 1),
+                      st.integers(5, 30), st.integers(2, 30))
+    for kind, r0, c0, a, b in draw(st.lists(shape, min_size=1, max_size=7)):
+        if kind == "disc":
+            ink |= np.hypot(yy - r0, xx - c0) <= a
+        elif kind == "rect":
+            ink |= (np.abs(yy - r0) <= a) & (np.abs(xx - c0) <= b)
+        elif kind == "ring":
+            r = np.hypot(yy - r0, xx - c0)
+            ink |= (r <= a) & (r > min(b, a - 2))
+        else:
+            ink &= np.hypot(yy - r0, xx - c0) > a / 2
+    return InkMask.centred(ink, RES)
+
+
+def _params(pitch: float, outlines_first: bool) -> ToolpathParams:
+    return dataclasses.replace(PARAMS, pitch_mm=pitch, outlines_first=outlines_first)
+
+
+def _drawing(mask: InkMask, params: ToolpathParams) -> Drawing | None:
+    drawing = build_drawing(mask, params)
+    return drawing if len(drawing.strokes) >= 2 else None
+
+
+# ---------------------------------------------------------------- polylines
+
+
+@settings(max_examples=80, deadline=None)
+@given(polylines(), st.sampled_from([0.15, 0.05, 0.3, 0.25, 0.07, 1.0]), st.integers(0, 2**32 - 1))
+def test_resample_many_is_resample(polys: list[NDArray[np.float64]], step: float,
+                                   seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    bounds = np.concatenate([[0], np.cumsum([len(p) for p in polys])]).astype(np.intp)
+    closed = (rng.random(len(polys)) < 0.5) & (np.diff(bounds) >= 2)
+    seam = rng.integers(0, 400, len(polys)) * (rng.random(len(polys)) < 0.7)
+    rev = rng.random(len(polys)) < 0.5
+    verts = np.concatenate(polys)
+    out, ob = resample_many(verts[oriented(bounds, closed, seam, rev)], bounds, step)
+    for i, p in enumerate(polys):
+        path = rotate_closed(p, int(seam[i])) if closed[i] and seam[i] else p
+        ref = resample(path[::-1] if rev[i] else path, step)
+        assert np.array_equal(out[ob[i] : ob[i + 1]], ref)
+
+
+# ---------------------------------------------------------------- lines on ink
+
+
+def _grid_lines(mask: InkMask, rng: np.random.Generator, n: int, denominator: int
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Lines between points on a 1/denominator pixel lattice: through pixel centres, along
+    pixel edges and through pixel corners."""
+    h, w = mask.ink.shape
+    lo = -2 * denominator
+    ua = rng.integers(lo, w * denominator - lo, n) / denominator
+    va = rng.integers(lo, h * denominator - lo, n) / denominator
+    ub = ua + rng.integers(-8 * denominator, 8 * denominator, n) / denominator
+    vb = va + rng.integers(-8 * denominator, 8 * denominator, n) / denominator
+    a = np.column_stack([mask.xs[0] + ua * RES, mask.ys[0] - va * RES])
+    b = np.column_stack([mask.xs[0] + ub * RES, mask.ys[0] - vb * RES])
+    return a, b
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(masks(size=48), st.integers(0, 2**32 - 1), st.sampled_from([1, 2, 4, 16]))
+def test_lines_on_ink_is_the_sampled_reading(mask: InkMask, seed: int, denominator: int
+                                             ) -> None:
+    rng = np.random.default_rng(seed)
+    a, b = _grid_lines(mask, rng, 300, denominator)
+    free_a = rng.uniform([mask.xs[0] - 1, mask.ys[-1] - 1], [mask.xs[-1] + 1, mask.ys[0] + 1],
+                         (300, 2))
+    free_b = free_a + rng.normal(0, 2, (300, 2))
+    a, b = np.concatenate([a, free_a]), np.concatenate([b, free_b])
+    assert np.array_equal(lines_on_ink(mask, a, b), lines_on_ink_sampled(mask, a, b))
+
+
+def test_lines_on_ink_chunks_and_degenerate_lines() -> None:
+    ink = np.zeros((20, 30), bool)
+    ink[5:15, 5:25] = True
+    mask = InkMask.centred(ink, RES)
+    rng = np.random.default_rng(3)
+    a, b = _grid_lines(mask, rng, 500, 2)
+    b[:50] = a[:50]  # points
+    want = lines_on_ink_sampled(mask, a, b)
+    assert np.array_equal(lines_on_ink(mask, a, b), want)
+    assert np.array_equal(lines_on_ink(mask, a, b, chunk=7), want)
+    assert lines_on_ink(mask, np.zeros((0, 2)), np.zeros((0, 2))).shape == (0,)
+
+
+# ---------------------------------------------------------------- ordering and the path
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(masks(), st.sampled_from([0.5, 1.2, 2.0]), st.booleans())
+def test_ordering_steps_match_the_former_ones(mask: InkMask, pitch: float,
+                                              outlines_first: bool) -> None:
+    params = _params(pitch, outlines_first)
+    drawing = _drawing(mask, params)
+    if drawing is None:
+        return
+    n = len(drawing.strokes)
+    seam = np.zeros(n, np.intp)
+    costs = TransitionCosts(_endpoints(drawing, seam), mask, params)
+    prec = _Precedence(drawing, outlines_first)
+    may_start = prec.outline if prec.enabled and prec.outline.any() else np.ones(n, bool)
+    ids = np.flatnonzero(np.repeat(may_start, 2))
+    firsts = sorted({int(ids[0]), int(ids[-1]), int(ids[len(ids) // 2])})
+    tours = _greedy(costs, prec, firsts)
+    for first, (seq, rev) in zip(firsts, tours, strict=True):
+        ref_seq, ref_rev = greedy_reference(costs, prec, first)
+        assert np.array_equal(seq, ref_seq) and np.array_equal(rev, ref_rev)
+    seq, rev, _, _ = _two_opt(costs, *tours[0], prec, 20)
+    new_seam = _optimise_seams(drawing, seq, rev, seam, mask, params, costs)
+    assert np.array_equal(new_seam, seams_reference(drawing, seq, rev, seam, mask, params, costs))
+    # the costs after the seams moved: reusing the old ones changes nothing
+    pts = _endpoints(drawing, new_seam)
+    moved = np.any(pts != costs.pts, axis=1)
+    fresh = TransitionCosts(pts, mask, params)
+    reused = TransitionCosts(pts, mask, params, reuse=costs, moved=moved)
+    for name in ("src", "dst", "key", "drag_s", "indptr"):
+        assert np.array_equal(getattr(fresh, name), getattr(reused, name))
+    full, again = fresh.matrix(), reused.matrix()
+    if full is not None and again is not None:
+        assert np.array_equal(full, again)
+        assert np.array_equal(full[3], fresh.from_endpoint(3))
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(masks(), st.sampled_from([0.5, 1.2, 2.0]), st.booleans())
+def test_build_path_matches_the_former_one(mask: InkMask, pitch: float, reverse: bool) -> None:
+    params = _params(pitch, True)
+    drawing = _drawing(mask, params)
+    if drawing is None:
+        return
+    order = original_order(drawing)
+    strokes = [s.points(params.step_mm, reverse=reverse) for s in drawing.strokes]
+    for reach in (None, math.inf):
+        want = build_path_reference(strokes, mask, params, reach)
+        got = build_path(strokes, mask, params, reach)
+        for name in ("uvz_mm", "kind", "stroke"):
+            assert np.array_equal(getattr(got, name), getattr(want, name))
+        assert got.drags == want.drags
+    pts, bounds = order.resampled(drawing, params.step_mm)
+    flat = build_path_flat(pts, bounds, mask, params)
+    assert np.array_equal(flat.uvz_mm, build_path(order.points(drawing, params.step_mm), mask,
+                                                  params).uvz_mm)
+
+
+def _same_plan(a: Toolpath, b: Toolpath) -> None:
+    assert np.array_equal(a.order.sequence, b.order.sequence)
+    assert np.array_equal(a.order.reverse, b.order.reverse)
+    assert np.array_equal(a.order.seam, b.order.seam)
+    assert np.array_equal(a.path.uvz_mm, b.path.uvz_mm)
+    assert a.metrics == b.metrics and a.original == b.original
+    assert a.metrics_dict() == b.metrics_dict()
+
+
+@pytest.mark.parametrize("outlines_first", [True, False])
+def test_plan_without_cost_matrices_is_the_same(monkeypatch: pytest.MonkeyPatch,
+                                                outlines_first: bool) -> None:
+    """Above MAX_MATRIX endpoints the costs are computed row by row: the same plan."""
+    yy, xx = np.mgrid[0:160, 0:240]
+    ink = np.zeros((160, 240), bool)
+    for cx, cy in ((50, 50), (120, 60), (190, 110), (70, 120)):
+        r = np.hypot(xx - cx, yy - cy)
+        ink |= (r <= 30) & (r >= 12)
+    ink[70:90, 20:220] = True
+    mask = InkMask.centred(ink, RES)
+    params = _params(1.2, outlines_first)
+    full = plan_toolpath(mask, params)
+    monkeypatch.setattr(costs_mod, "MAX_MATRIX", 0)
+    _same_plan(full, plan_toolpath(mask, params))
