@@ -221,6 +221,11 @@ class ClosedLoopStudy(ABC):
         """The plant's step for this study's runs; None: ``plant.dt_s``."""
         return None
 
+    def cost(self, cfg: Config) -> float:
+        """How long the case runs, relative to the study's others (1 by default): the pool
+        starts the longest first, so no long case is left alone at the end."""
+        return 1.0
+
     def window_metrics(self, loop: ClosedLoop) -> JsonDict:
         """Metrics added to each window's (empty by default)."""
         return {}
@@ -332,7 +337,10 @@ class ClosedLoopStudy(ABC):
             if self.case_name(c) != case:
                 raise ConfigError(f"the {self.name} case '{case}' runs as "
                                   f"'{self.case_name(c)}': name it so in conf/study")
-        results = run_parallel(self.compute_case, configs, out.data, workers)
+        longest_first = dict(sorted(configs.items(), key=lambda kv: -self.cost(kv[1])))
+        done = {r.case: r for r in run_parallel(self.compute_case, longest_first, out.data,
+                                                 workers)}
+        results = [done[case] for case in configs]
         name = artwork_name(cfg.artwork)
         folders = (out.path("metrics", self.name, name),
                    StudySeriesRecord.path(out.data, self.name, name, "x").parent)

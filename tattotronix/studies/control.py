@@ -74,6 +74,10 @@ class ControlStudy(ClosedLoopStudy):
     def case_name(self, cfg: Config) -> str:
         return f"{setting(cfg, 'controller.structure')}-wn{float(cfg.controller.wn):g}"
 
+    def cost(self, cfg: Config) -> float:
+        # computed torque runs the Python loop (the model every tick); the rest, the engine
+        return 4.0 if setting(cfg, "controller.structure") == "computed_torque" else 1.0
+
     def figure(self, cases: Cases, path: Path, title: str = "") -> None:
         """Structures at wn 20 (bars) and the pid_g bandwidth sweep (lines)."""
         plt = pyplot()

@@ -64,6 +64,10 @@ class RateStudy(ClosedLoopStudy):
     def plant_dt_s(self, cfg: Config) -> float | None:
         return float(cfg.study.rate_plant_dt_s)
 
+    def cost(self, cfg: Config) -> float:
+        # the plant's steps are the same in every case; the controller ticks in Python
+        return float(cfg.controller.rate_hz)
+
     def window_metrics(self, loop: ClosedLoop) -> JsonDict:
         return {"boundary": rate_verdict_check(loop)}
 
