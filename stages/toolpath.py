@@ -2,9 +2,11 @@
 
 Reads ``data/mask/<name>.npz`` (run the ``mask`` stage first) and writes
 ``data/toolpath/<name>.npz`` (``uvz_mm``, ``kind``, ``xyz_m``, ``stroke``, ``t_s``, and per
-drawn stroke ``stroke_kind`` and ``stroke_region``; ``provenance``), the figure
-``data/figures/<name>/toolpath.png`` and ``data/metrics/toolpath/<name>.json`` (ours and,
-under ``original_order``, the same figures for the original's ordering rule).
+drawn stroke ``stroke_kind`` and ``stroke_region``; ``provenance``), the figures
+``data/figures/<name>/toolpath.png`` and ``data/figures/<name>/artwork_ink.png`` (the planned
+ink over the artwork, bleed in red) and ``data/metrics/toolpath/<name>.json`` (ours and,
+under ``original_order``, the same figures for the original's ordering rule; under
+``artwork``, the planned ink against the artwork: tattotronix/path/fidelity.py).
 """
 
 from __future__ import annotations
@@ -16,9 +18,11 @@ from tattotronix.art.grid import InkMask
 from tattotronix.config.schema import Config
 from tattotronix.io.artifacts import ToolpathRecord, make_provenance
 from tattotronix.io.outputs import Outputs
+from tattotronix.path.fidelity import fidelity_image, planned_ink, save_png
 from tattotronix.path.figure import toolpath_figure
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.plan import plan_toolpath
+from tattotronix.path.strokes import StrokeKind
 from tattotronix.stage import run_stage
 
 log = logging.getLogger("tattotronix.stages.toolpath")
@@ -46,10 +50,18 @@ def main(cfg: Config, out: Outputs) -> None:
     toolpath_figure(
         tp, params.panel_size_mm, out.tmp_path(out.path("figures", name, "toolpath.png")), name
     )
+    ink = planned_ink(mask, tp.path.uvz_mm, tp.path.stroke,
+                      tp.drawing.kinds[seq] == StrokeKind.FILL, float(cfg.draw.needle_mm),
+                      float(cfg.draw.ink_res_mm))
+    save_png(fidelity_image(ink.art, ink.ink), float(cfg.draw.ink_res_mm),
+             out.tmp_path(out.path("figures", name, "artwork_ink.png")))
     out.write_json(out.path("metrics", "toolpath", f"{name}.json"),
-                   {"name": name, **tp.metrics_dict()})
+                   {"name": name, **tp.metrics_dict(), "artwork": ink.fidelity.metrics()})
     out.write_timings("toolpath", name, {"ordering_s": tp.ordering.elapsed_s})
-    m, o = tp.metrics, tp.original
+    m, o, f = tp.metrics, tp.original, ink.fidelity
+    log.info("toolpath %s against the artwork: bleed %.1f %% (up to %.3f mm), coverage "
+             "%.1f %%, edge error %.3f mm mean, %.3f mm worst", name, 100 * f.bleed_share,
+             f.bleed_max_mm, 100 * f.coverage, f.edge_mean_mm, f.edge_max_mm)
     log.info(
         "toolpath %s: %d points, %.0f mm marked, %.0f mm travel, %d entries, %.1f s "
         "(original order: %.0f mm travel, %d entries, %.1f s)",

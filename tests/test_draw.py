@@ -55,6 +55,14 @@ def test_draw_writes_log_metrics_and_ink_on_every_backend(data: Path, backend: s
         ink = np.asarray(im.convert("L")) < 128
     assert ink.any() and ink.mean() < 0.9
     assert (run / "ink_vs_plan.png").exists()
+    # against the artwork (the small drawing's mask, made here): the simulated ink and the
+    # reference's, side by side
+    sim, plan = m["artwork"], m["artwork_plan"]
+    assert 0.3 < sim["coverage"] <= 1.0 and 0.0 <= sim["bleed_share"] < 0.5
+    assert sim["bleed_max_mm"] < 1.0 and 0 < sim["edge_mean_mm"] <= sim["edge_max_mm"]
+    assert abs(sim["coverage"] - plan["coverage"]) < 0.05
+    with Image.open(run / "ink_vs_artwork.png") as im:
+        assert im.size[0] > 100
 
 
 @pytest.mark.slow

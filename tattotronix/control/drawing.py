@@ -26,6 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.art.artwork import BUILTINS, artwork_name
+from tattotronix.art.grid import InkMask
 from tattotronix.config.schema import Config, to_dict
 from tattotronix.control.analysis import LoopReport, loop_report
 from tattotronix.control.controller import Controller, Gains
@@ -47,6 +48,7 @@ from tattotronix.io.artifacts import (
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain
+from tattotronix.path.fidelity import artwork_fidelity, artwork_on, fidelity_image, save_png
 from tattotronix.plants import PlantSettings, make_plant
 from tattotronix.robot.description import RobotDescription, build_description
 from tattotronix.trajectory import JointPath, load_trajectory
@@ -416,16 +418,27 @@ def _score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
     err = loop.errors(chain, float(cfg.draw.settle_periods), (tip, tip_ref))
     origin = np.asarray(cfg.toolpath.panel_origin, dtype=np.float64)
     res = float(cfg.draw.ink_res_mm)
-    grid = ink_grid([tip, tip_ref], origin, res)
+    mask = _artwork_mask(cfg, out.data, drawing)
+    corners = None if mask is None else np.array([[mask.xs[0], mask.ys[0]],
+                                                  [mask.xs[-1], mask.ys[-1]]])
+    grid = ink_grid([tip, tip_ref], origin, res, cover_mm=corners)
     sim_ink = rasterise_ink(tip, origin, grid, float(cfg.draw.needle_mm))
     plan_ink = rasterise_ink(tip_ref, origin, grid, float(cfg.draw.needle_mm))
     ink = compare_ink(sim_ink, plan_ink, res)
+    against_art: dict[str, Any] = {"artwork": None, "artwork_plan": None}
+    art = None if mask is None else artwork_on(mask, grid)
+    if art is not None:
+        against_art = {"artwork": artwork_fidelity(art, sim_ink, res).metrics(),
+                       "artwork_plan": artwork_fidelity(art, plan_ink, res).metrics()}
 
     run_folder = run_dir(out.data, label)
     ink_img, cmp_img = _ink_images(sim_ink, plan_ink)
     dpi = 25.4 / res
     ink_img.save(out.tmp_path(run_folder / "ink.png"), format="PNG", dpi=(dpi, dpi))
     cmp_img.save(out.tmp_path(run_folder / "ink_vs_plan.png"), format="PNG", dpi=(dpi, dpi))
+    if art is not None:
+        save_png(fidelity_image(art, sim_ink), res,
+                 out.tmp_path(run_folder / "ink_vs_artwork.png"))
     RunLogRecord(
         joints=desc.joint_names, t=run.t[idx], q=run.q[idx], qd=run.qd_samples,
         tau=run.tau[idx], q_ref=run.ref.q[idx], qd_ref=run.ref.qd[idx], tip=tip[idx],
@@ -434,7 +447,7 @@ def _score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
            make_provenance(cfg, drawing.inputs))
     metrics = loop.metrics(err)
     metrics.update(_finite({
-        **ink.metrics(),
+        **ink.metrics(), **against_art,
         "plant": {"dt_s": loop.plant_dt_s, "substeps": run.substeps,
                   "damping": float(cfg.plant.damping),
                   "joint_limits": bool(cfg.plant.joint_limits),
@@ -448,6 +461,23 @@ def _score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
              _fmt(metrics["marking_max_um"]), run.peak_torque_nm, ink.iou,
              run.realtime_factor, run.wall_s)
     return metrics
+
+
+def _artwork_mask(cfg: Config, data: Path, drawing: Drawing) -> InkMask | None:
+    """The ink mask the drawing was planned from: the mask stage's file for a stored or
+    re-timed drawing, else the artwork's, made here; None where there is none to make."""
+    from tattotronix.pipeline import mask_of
+
+    stored = data / "mask" / f"{drawing.name}.npz"
+    if drawing.origin != "planned" and stored.exists():
+        return InkMask.load(stored)
+    source = drawing.inputs.get("artwork")
+    if source is None and drawing.name in BUILTINS:
+        return mask_of(cfg, drawing.name, drawing.name)
+    if source is None:
+        log.info("draw %s: no artwork to compare the ink with (no stored mask)", drawing.name)
+        return None
+    return mask_of(cfg, source, drawing.name)
 
 
 def _fmt(v: object) -> str:

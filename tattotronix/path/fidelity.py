@@ -1,0 +1,264 @@
+"""Ink against the artwork: what the needle draws, compared with what was designed.
+
+The ink is rasterised at the needle's width (every run of consecutive points below the
+panel surface is a polyline that wide) on a grid finer than the mask (``draw.ink_res_mm``),
+in panel millimetres (the mask's frame: ``u`` is the mask's ``xs``, ``v`` its ``ys``). The
+artwork is the ink mask, each fine pixel taking the mask pixel it falls in. Reported
+(:class:`ArtworkFidelity`):
+
+* **bleed**: the share of the ink outside the artwork, and how far outside it reaches at
+  worst (mm);
+* **coverage**: the share of the artwork inked (all ink; for a planned path also by the
+  outlines' ink and by the fill's ink alone);
+* **edge error**: for every pixel on the artwork's edge, the distance to the nearest edge
+  of the ink (mm): mean and worst. An outline run on the artwork's edge puts half the
+  needle's width outside it, so its edge error is about half the needle width.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from tattotronix.art.grid import InkMask
+from tattotronix.io.jsontypes import JsonDict
+
+__all__ = ["ArtworkFidelity", "InkGrid", "PlannedInk", "artwork_fidelity", "artwork_on",
+           "below_runs", "fidelity_image", "grid_over", "planned_ink", "rasterise_runs",
+           "save_png"]
+
+Array = NDArray[np.float64]
+Mask = NDArray[np.bool_]
+_SHIFT = 4  # cv2 fixed-point bits: 1/16 px
+_CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+
+
+@dataclass(frozen=True)
+class InkGrid:
+    """A raster over the panel plane.
+
+    Attributes:
+        u0_mm, v0_mm: panel coordinates of pixel (0, 0)'s centre, mm (row 0 is the top,
+            highest ``v``).
+        res_mm: pixel size, mm.
+        shape: (rows, cols).
+    """
+
+    u0_mm: float
+    v0_mm: float
+    res_mm: float
+    shape: tuple[int, int]
+
+    def to_px(self, uv_mm: Array) -> Array:
+        """(N, 2) panel mm -> (N, 2) pixel (col, row) coordinates (float)."""
+        col = (uv_mm[:, 0] - self.u0_mm) / self.res_mm
+        row = (self.v0_mm - uv_mm[:, 1]) / self.res_mm
+        return np.stack([col, row], axis=1)
+
+
+def grid_over(points_mm: Sequence[Array], res_mm: float, margin_mm: float = 1.0) -> InkGrid:
+    """A grid of ``res_mm`` pixels covering every (N, 2) point set (plus a margin)."""
+    allp = np.concatenate([p[:, :2] for p in points_mm if len(p)] or [np.zeros((1, 2))])
+    lo = allp.min(axis=0) - margin_mm
+    hi = allp.max(axis=0) + margin_mm
+    cols = int(np.ceil((hi[0] - lo[0]) / res_mm)) + 1
+    rows = int(np.ceil((hi[1] - lo[1]) / res_mm)) + 1
+    return InkGrid(u0_mm=float(lo[0]), v0_mm=float(hi[1]), res_mm=float(res_mm),
+                   shape=(rows, cols))
+
+
+def below_runs(uvz_mm: Array, split: NDArray[np.integer] | None = None) -> list[Array]:
+    """The runs of consecutive points below the surface (z < 0), as (m, 2) panel mm; a
+    change of ``split`` (a stroke id per point) also ends a run."""
+    below = uvz_mm[:, 2] < 0.0
+    cut = np.zeros(len(below) + 1, dtype=bool)
+    if split is not None and len(split) > 1:
+        cut[1:-1] = split[1:] != split[:-1]
+    runs: list[Array] = []
+    edges = np.diff(np.concatenate(([0], below.astype(np.int8), [0])))
+    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
+        inner = a + np.flatnonzero(cut[a + 1:b]) + 1
+        bounds = [a, *inner.tolist(), b]
+        runs.extend(uvz_mm[s:e, :2] for s, e in zip(bounds[:-1], bounds[1:], strict=True))
+    return runs
+
+
+def rasterise_runs(runs: Sequence[Array], grid: InkGrid, needle_mm: float) -> Mask:
+    """Ink of polylines (panel mm) at the needle's width: True where inked."""
+    img = np.zeros(grid.shape, dtype=np.uint8)
+    if not runs:
+        return img.astype(bool)
+    # cv2 inks the pixel centres within thickness/2 of the line, both edges included, so
+    # a band of thickness t covers about t + 1 pixels: t = width/res - 1 (within a pixel)
+    thick = max(1, int(round(needle_mm / grid.res_mm)) - 1)
+    px = [np.rint(grid.to_px(r) * (1 << _SHIFT)).astype(np.int32) for r in runs]
+    cv2.polylines(img, [p.reshape(-1, 1, 2) for p in px if len(p) > 1], isClosed=False,
+                  color=1, thickness=thick, lineType=cv2.LINE_8, shift=_SHIFT)
+    radius = max(1, int(round(needle_mm / grid.res_mm / 2 - 0.5)))
+    for p in px:
+        if len(p) == 1:  # a single point: a dot
+            cv2.circle(img, (int(p[0, 0]), int(p[0, 1])), radius << _SHIFT, 1, -1,
+                       cv2.LINE_8, _SHIFT)
+    return img.astype(bool)
+
+
+def artwork_on(mask: InkMask, grid: InkGrid) -> Mask:
+    """The artwork on ``grid``: each pixel takes the mask pixel its centre falls in."""
+    rows, cols = grid.shape
+    u = grid.u0_mm + np.arange(cols) * grid.res_mm
+    v = grid.v0_mm - np.arange(rows) * grid.res_mm
+    mc = np.floor((u - mask.xs[0]) / mask.res_mm + 0.5).astype(np.int64)
+    mr = np.floor((mask.ys[0] - v) / mask.res_mm + 0.5).astype(np.int64)
+    h, w = mask.ink.shape
+    okc, okr = (mc >= 0) & (mc < w), (mr >= 0) & (mr < h)
+    out = np.zeros(grid.shape, dtype=bool)
+    out[np.ix_(okr, okc)] = mask.ink[np.ix_(mr[okr], mc[okc])]
+    return out
+
+
+def _edge(img: Mask) -> Mask:
+    """The pixels of ``img`` with a 4-neighbour outside it."""
+    inner = cv2.erode(img.astype(np.uint8), _CROSS, borderValue=0)
+    return img & ~inner.astype(bool)
+
+
+def _distance_to(img: Mask) -> NDArray[np.float32]:
+    """Distance of every pixel to the nearest pixel of ``img`` (px; inf if none)."""
+    if not img.any():
+        return np.full(img.shape, np.inf, dtype=np.float32)
+    dist = cv2.distanceTransform((~img).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    return np.asarray(dist, dtype=np.float32)
+
+
+@dataclass(frozen=True)
+class ArtworkFidelity:
+    """Ink against the artwork (see the module docstring; lengths in mm, shares 0..1).
+
+    Attributes:
+        bleed_share: inked pixels outside the artwork over inked pixels.
+        bleed_max_mm: the farthest inked pixel from the artwork.
+        coverage: artwork pixels inked over artwork pixels.
+        coverage_outlines, coverage_fill: the same for the outlines' and the fill's ink
+            alone (None where the ink is not split by stroke kind).
+        edge_mean_mm, edge_max_mm: distance from the artwork's edge to the ink's edge.
+        res_mm: the grid's pixel.
+    """
+
+    bleed_share: float
+    bleed_max_mm: float
+    coverage: float
+    coverage_outlines: float | None
+    coverage_fill: float | None
+    edge_mean_mm: float
+    edge_max_mm: float
+    res_mm: float
+
+    def metrics(self) -> JsonDict:
+        """JSON-ready (the ``artwork`` section of a metrics file)."""
+        return {"bleed_share": self.bleed_share, "bleed_max_mm": self.bleed_max_mm,
+                "coverage": self.coverage, "coverage_outlines": self.coverage_outlines,
+                "coverage_fill": self.coverage_fill, "edge_mean_mm": self.edge_mean_mm,
+                "edge_max_mm": self.edge_max_mm, "res_mm": self.res_mm}
+
+
+def artwork_fidelity(art: Mask, ink: Mask, res_mm: float, outlines: Mask | None = None,
+                     fill: Mask | None = None) -> ArtworkFidelity:
+    """Compare ink with the artwork on one grid (``res_mm`` pixels).
+
+    Args:
+        art: the artwork on the grid (:func:`artwork_on`).
+        ink: all the ink.
+        res_mm: the pixel, mm.
+        outlines, fill: the outlines' and the fill's ink alone, if known.
+    """
+    n_ink, n_art = int(ink.sum()), int(art.sum())
+    outside = ink & ~art
+    bleed_max = float(_distance_to(art)[outside].max()) * res_mm if outside.any() else 0.0
+    art_edge = _edge(art)
+    to_ink_edge = _distance_to(_edge(ink))[art_edge]
+
+    def cover(m: Mask) -> float:
+        return float((m & art).sum()) / n_art if n_art else 0.0
+
+    return ArtworkFidelity(
+        bleed_share=float(outside.sum()) / n_ink if n_ink else 0.0,
+        bleed_max_mm=bleed_max,
+        coverage=cover(ink),
+        coverage_outlines=None if outlines is None else cover(outlines),
+        coverage_fill=None if fill is None else cover(fill),
+        edge_mean_mm=float(to_ink_edge.mean()) * res_mm if len(to_ink_edge) else 0.0,
+        edge_max_mm=float(to_ink_edge.max()) * res_mm if len(to_ink_edge) else 0.0,
+        res_mm=float(res_mm),
+    )
+
+
+@dataclass(frozen=True)
+class PlannedInk:
+    """A planned path's ink against its artwork.
+
+    Attributes:
+        art: the artwork on the grid. ink: the ink. fidelity: the comparison.
+    """
+
+    art: Mask
+    ink: Mask
+    fidelity: ArtworkFidelity
+
+
+def planned_ink(mask: InkMask, uvz_mm: Array, stroke: NDArray[np.integer],
+                stroke_fill: NDArray[np.bool_], needle_mm: float, res_mm: float) -> PlannedInk:
+    """The ink a planned path draws, against the artwork (the mask), on a ``res_mm`` grid
+    over the mask.
+
+    Args:
+        mask: the ink mask the path was planned from.
+        uvz_mm: (N, 3) the path, panel mm (the mask's frame).
+        stroke: (N,) position in the drawing order of each point's stroke.
+        stroke_fill: (strokes,) whether each drawn stroke (in drawing order) is fill.
+        needle_mm: the needle's line width.
+        res_mm: the grid's pixel (finer than the mask's).
+    """
+    corners = np.array([[mask.xs[0], mask.ys[0]], [mask.xs[-1], mask.ys[-1]]])
+    grid = grid_over([corners, uvz_mm[uvz_mm[:, 2] < 0.0]], res_mm)
+    runs = below_runs(uvz_mm, stroke)
+    firsts = _run_starts(uvz_mm, stroke)
+    fill_run = np.asarray(stroke_fill, dtype=bool)[stroke[firsts]] if len(firsts) else \
+        np.zeros(0, dtype=bool)
+    outlines = rasterise_runs([r for r, f in zip(runs, fill_run, strict=True) if not f], grid,
+                              needle_mm)
+    fill = rasterise_runs([r for r, f in zip(runs, fill_run, strict=True) if f], grid,
+                          needle_mm)
+    ink = outlines | fill
+    art = artwork_on(mask, grid)
+    return PlannedInk(art, ink, artwork_fidelity(art, ink, res_mm, outlines, fill))
+
+
+def _run_starts(uvz_mm: Array, split: NDArray[np.integer]) -> NDArray[np.intp]:
+    """The index of the first point of each run of :func:`below_runs` (same split)."""
+    below = uvz_mm[:, 2] < 0.0
+    start = below.copy()
+    start[1:] &= ~below[:-1] | (split[1:] != split[:-1])
+    return np.flatnonzero(start)
+
+
+def fidelity_image(art: Mask, ink: Mask) -> NDArray[np.uint8]:
+    """(H, W, 3) RGB overlay: ink on the artwork dark grey, the artwork left uninked light
+    grey, the bleed (ink outside the artwork) red, the rest white."""
+    rgb = np.full(art.shape + (3,), 255, dtype=np.uint8)
+    rgb[art & ~ink] = (200, 200, 200)
+    rgb[art & ink] = (40, 40, 40)
+    rgb[ink & ~art] = (230, 30, 30)
+    return rgb
+
+
+def save_png(rgb: NDArray[np.uint8], res_mm: float, path: Path) -> None:
+    """Write an image of ``res_mm`` pixels as a PNG that states its scale (dpi)."""
+    from PIL import Image
+
+    dpi = 25.4 / res_mm
+    Image.fromarray(rgb).save(path, format="PNG", dpi=(dpi, dpi))

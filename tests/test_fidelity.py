@@ -1,0 +1,112 @@
+"""Ink against the artwork (tattotronix/path/fidelity.py): bleed, coverage and edge error
+on shapes whose answer is known, a property over random rectangles and insets, and the
+planned ink of a real toolpath."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from tattotronix.art.grid import InkMask
+from tattotronix.config.schema import MaskConfig, PanelConfig, ToolpathConfig
+from tattotronix.path.fidelity import (
+    artwork_fidelity,
+    artwork_on,
+    below_runs,
+    fidelity_image,
+    grid_over,
+    planned_ink,
+    rasterise_runs,
+)
+from tattotronix.path.params import ToolpathParams
+from tattotronix.path.plan import plan_toolpath
+from tattotronix.path.strokes import StrokeKind
+
+RES = 0.025  # mm: the grid the issue measured on
+NEEDLE = 0.3
+
+
+def _square(half_mm: float, res_mm: float = 0.25, size_mm: float = 30.0) -> InkMask:
+    n = int(round(size_mm / res_mm))
+    mask = InkMask.centred(np.zeros((n, n), dtype=bool), res_mm)
+    inside = (np.abs(mask.xs)[None, :] <= half_mm) & (np.abs(mask.ys)[:, None] <= half_mm)
+    return InkMask(inside, res_mm, mask.xs, mask.ys)
+
+
+def _loop(half_mm: float, step_mm: float = 0.1) -> np.ndarray:
+    """A closed square outline of half-side ``half_mm``, as panel points below the surface."""
+    t = np.arange(-half_mm, half_mm, step_mm)
+    side = [np.c_[t, np.full_like(t, -half_mm)], np.c_[np.full_like(t, half_mm), t],
+            np.c_[-t, np.full_like(t, half_mm)], np.c_[np.full_like(t, -half_mm), -t]]
+    uv = np.vstack([*side, side[0][:1]])
+    return np.c_[uv, np.full(len(uv), -1.0)]
+
+
+def _fidelity(mask: InkMask, uvz: np.ndarray):
+    corners = np.array([[mask.xs[0], mask.ys[0]], [mask.xs[-1], mask.ys[-1]]])
+    grid = grid_over([corners], RES)
+    art = artwork_on(mask, grid)
+    ink = rasterise_runs(below_runs(uvz), grid, NEEDLE)
+    return art, ink, artwork_fidelity(art, ink, RES)
+
+
+def test_the_artwork_on_a_grid_of_its_own_pixel_is_the_mask() -> None:
+    mask = _square(5.0)
+    corners = np.array([[mask.xs[0], mask.ys[0]], [mask.xs[-1], mask.ys[-1]]])
+    grid = grid_over([corners], mask.res_mm, margin_mm=0.0)
+    assert np.array_equal(artwork_on(mask, grid), mask.ink)
+
+
+def test_an_outline_on_the_edge_bleeds_half_the_needle_and_an_inset_one_does_not() -> None:
+    """The measurement the issue describes: an outline run on the artwork's edge puts half
+    the needle's width outside it; inset by half the needle, none (to a pixel)."""
+    # the mask's edge lies half a mask pixel beyond the outermost inked pixel centre
+    mask = _square(10.0)
+    edge = 10.0 + mask.res_mm / 2
+    _, _, on = _fidelity(mask, _loop(edge))
+    assert on.bleed_max_mm == pytest.approx(NEEDLE / 2, abs=2 * RES)
+    assert on.edge_mean_mm == pytest.approx(NEEDLE / 2, abs=2 * RES)
+    assert 0.3 < on.bleed_share < 0.7  # half the band is outside
+    _, _, inset = _fidelity(mask, _loop(edge - NEEDLE / 2))
+    assert inset.bleed_max_mm <= 2 * RES and inset.bleed_share < 0.05
+    assert inset.edge_mean_mm <= 2 * RES
+    # an outline alone covers a thin frame of the square, not its inside
+    assert inset.coverage < 0.1
+
+
+def test_ink_that_is_the_artwork_covers_it_all_and_bleeds_nothing() -> None:
+    art = np.zeros((40, 60), dtype=bool)
+    art[10:30, 5:50] = True
+    f = artwork_fidelity(art, art.copy(), RES)
+    assert (f.coverage, f.bleed_share, f.bleed_max_mm, f.edge_max_mm) == (1.0, 0.0, 0.0, 0.0)
+    rgb = fidelity_image(art, art)
+    assert (rgb[art] == (40, 40, 40)).all() and (rgb[~art] == 255).all()
+
+
+@settings(max_examples=25, deadline=None)
+@given(cells=st.integers(12, 48), inset=st.floats(NEEDLE / 2 + 2 * RES, 2.0))
+def test_an_outline_inset_by_half_the_needle_keeps_the_ink_inside(cells: int,
+                                                                 inset: float) -> None:
+    half = cells * 0.25  # on a mask pixel centre, so the mask's edge is half a pixel out
+    mask = _square(half)
+    edge = half + mask.res_mm / 2  # where the mask's ink ends
+    _, ink, f = _fidelity(mask, _loop(edge - inset))
+    assert ink.any()
+    assert f.bleed_max_mm <= RES * 1.5 and f.bleed_share < 0.02
+
+
+def test_a_planned_toolpath_reports_outline_and_fill_coverage() -> None:
+    mask = _square(6.0, size_mm=20.0)
+    params = ToolpathParams.from_config(ToolpathConfig(), MaskConfig(), PanelConfig())
+    tp = plan_toolpath(mask, params)
+    fill = tp.drawing.kinds[tp.order.sequence] == StrokeKind.FILL
+    got = planned_ink(mask, tp.path.uvz_mm, tp.path.stroke, fill, NEEDLE, 0.05)
+    f = got.fidelity
+    assert f.coverage_outlines is not None and f.coverage_fill is not None
+    assert max(f.coverage_outlines, f.coverage_fill) <= f.coverage
+    assert f.coverage <= f.coverage_outlines + f.coverage_fill + 1e-9
+    # the default plan runs the outline on the edge pixels: some ink outside, under a needle
+    assert 0.0 < f.bleed_max_mm <= NEEDLE and 0.0 < f.edge_mean_mm < NEEDLE
+    assert got.ink.shape == got.art.shape
