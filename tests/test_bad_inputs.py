@@ -655,3 +655,45 @@ def test_ctrl_c_on_a_real_stage(tmp_path: Path) -> None:
         "toolpath: interrupted (Ctrl-C): stopped, nothing written"]
     assert "Traceback" not in stdout + stderr and _files(data) == before
 
+
+
+def _children(pid: int) -> list[int]:
+    """The processes whose parent is ``pid`` (from /proc)."""
+    kids = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid:
+            kids.append(int(stat.parent.name))
+    return kids
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="needs /proc")
+def test_ctrl_c_stops_a_study_and_its_workers_at_once(draw_data: Path) -> None:
+    """SIGINT to a study's stage while its pool runs the cases: the workers stop with it
+    (no queued case runs first), the exit says so, and nothing is written."""
+    before = _files(draw_data)
+    proc = subprocess.Popen(
+        [PYTHON, "stages/approach.py", f"paths.data={draw_data}", "study.all_cases=true",
+         f"artwork.source={draw_data.parent / 'small.png'}", "mask.width_mm=24",
+         "mask.min_region_mm2=0.5", "draw.progress=false",
+         "study.approach_mm=[0.0,0.5,1.0,2.0,4.0,6.0]"],
+        cwd=ROOT, env=stage_env(), text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    deadline = time.monotonic() + 120
+    while len(_children(proc.pid)) < 2 and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    workers = _children(proc.pid)
+    assert proc.poll() is None and len(workers) >= 2, proc.communicate()
+    time.sleep(0.5)  # the cases are under way
+    t0 = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    stdout, stderr = proc.communicate(timeout=120)
+    assert proc.returncode == 130, stderr
+    assert time.monotonic() - t0 < 5.0  # not the rest of the cases first
+    assert stderr.strip().splitlines()[-1] == (
+        "approach: interrupted (Ctrl-C): stopped, nothing written")
+    assert "Traceback" not in stdout + stderr and _files(draw_data) == before
+    assert not [w for w in workers if Path(f"/proc/{w}").exists()]

@@ -387,6 +387,13 @@ def _one(run: CaseRun, cfg: Config, data: Path) -> CaseResult | str:
         return str(exc)
 
 
+def _ignore_ctrl_c() -> None:
+    """A worker leaves Ctrl-C to the stage, which stops the pool (and so the worker)."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def run_parallel(run: CaseRun, cases: Mapping[str, Config], data: Path,
                  workers: int | None = None) -> list[CaseResult]:
     """``run`` on every case's config, in a pool of ``workers`` forked processes (default: one
@@ -407,13 +414,12 @@ def run_parallel(run: CaseRun, cases: Mapping[str, Config], data: Path,
         outcomes: list[CaseResult | str] = [_one(run, c, data) for c in configs]
     else:
         import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
 
         warm_up()  # the shared imports, once, before the fork
-        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")
-                                 ) as pool:
-            futures = [pool.submit(_one, run, c, data) for c in configs]
-            outcomes = [f.result() for f in futures]
+        # a Pool, not a ProcessPoolExecutor: leaving the block terminates the workers, so a
+        # Ctrl-C stops every case at once instead of running the queued ones first
+        with multiprocessing.get_context("fork").Pool(workers, _ignore_ctrl_c) as pool:
+            outcomes = pool.starmap(_one, [(run, c, data) for c in configs], chunksize=1)
     for case, outcome in zip(cases, outcomes, strict=True):
         if isinstance(outcome, str):
             raise TattotronixError(f"case '{case}': {outcome}")
