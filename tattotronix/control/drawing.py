@@ -456,10 +456,10 @@ def _score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
     out.write_json(out.path("metrics", "runs", f"{label}.json"), metrics)
     out.write_timings("runs", label, run.timings())
     log.info("draw %s on %s: %s; settled %s / %s um (mean / max), marking max %s um, "
-             "peak %.3f N m, ink IoU %.3f, %.0fx real time (%.1f s)", drawing.name, backend,
-             run.verdict, _fmt(metrics["settled_mean_um"]), _fmt(metrics["settled_max_um"]),
-             _fmt(metrics["marking_max_um"]), run.peak_torque_nm, ink.iou,
-             run.realtime_factor, run.wall_s)
+             "peak %.3f N m, ink IoU %.3f, %.0fx real time (%.1f s, the %s loop)",
+             drawing.name, backend, run.verdict, _fmt(metrics["settled_mean_um"]),
+             _fmt(metrics["settled_max_um"]), _fmt(metrics["marking_max_um"]),
+             run.peak_torque_nm, ink.iou, run.realtime_factor, run.wall_s, run.loop)
     return metrics
 
 
