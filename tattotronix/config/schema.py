@@ -55,6 +55,7 @@ __all__ = [
     "ControlStudyConfig",
     "ControllerConfig",
     "DrawConfig",
+    "FillStyle",
     "FrameConfig",
     "HardwareConfig",
     "IkConfig",
@@ -293,6 +294,13 @@ class MaskMethod(Enum):
     edges = "edges"
 
 
+class FillStyle(Enum):
+    """How regions are filled: one hatch, or a cross-hatch (a second at 90 degrees)."""
+
+    hatch = "hatch"
+    cross = "cross"
+
+
 @settings
 class JointConfig:
     """One revolute joint: fixed origin (parent frame, m / rad), then a rotation about ``axis``."""
@@ -461,6 +469,9 @@ class ToolpathConfig:
 
     pitch_mm: float = bounded(1.2, lo=MIN_PITCH_MM, hi=100, unit="mm",
                               why="the hatch spacing")
+    fill_style: FillStyle = FillStyle.hatch
+    fill_angle_deg: float = bounded(0.0, lo=-180, hi=180, unit="deg",
+                                    why="the hatch's angle from the x axis")
     step_mm: float = bounded(0.15, lo=MIN_STEP_MM, hi=100, unit="mm",
                              why="the point spacing along a stroke")
     clearance_mm: float = bounded(8.0, lo=0, hi=100, unit="mm")

@@ -13,16 +13,26 @@ centres of the run's end pixels, which is where the traced outlines pass.
 
 Direction alternates per inked scanline of each region (a scanline whose runs are all
 single pixels still counts as inked, as in the original).
+
+Other angles (``toolpath.fill_angle_deg``) hatch the label image turned by that angle
+(nearest pixel, on a grid of the same pitch) with the same scanlines, and turn the
+segments back; a cross-hatch (``toolpath.fill_style=cross``) adds a second pass at the
+angle plus 90 degrees, after the first in each region.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["MIN_RUN_PX", "Hatch", "hatch"]
+__all__ = ["FILL_STYLES", "MIN_RUN_PX", "Hatch", "fill_regions", "hatch", "hatch_at"]
+
+#: the fill styles (``toolpath.fill_style``): one hatch, or a cross-hatch of two
+FILL_STYLES = ("hatch", "cross")
 
 MIN_RUN_PX = 2  # shortest run of ink pixels that yields a hatch segment
 INSET_PX = 1  # pull each end of a run of 4 px or more in by this many pixels
@@ -105,3 +115,67 @@ def hatch(
     a = np.column_stack([np.where(flip, x1, x0), y])[order]
     b = np.column_stack([np.where(flip, x0, x1), y])[order]
     return Hatch(run_label[order].astype(np.int32), s_line[order], a, b)
+
+
+def _turn(points: NDArray[np.float64], deg: float) -> NDArray[np.float64]:
+    """(m, 2) points turned by ``deg`` degrees (anticlockwise) about the origin."""
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return points @ np.array([[c, s], [-s, c]])
+
+
+def hatch_at(
+    labels: NDArray[np.int32],
+    xs: NDArray[np.float64],
+    ys: NDArray[np.float64],
+    res_mm: float,
+    pitch_mm: float,
+    angle_deg: float,
+    inset_px: int = INSET_PX,
+) -> Hatch:
+    """:func:`hatch` with scanlines at ``angle_deg`` degrees from the x axis
+    (anticlockwise); 0 (or 180) is :func:`hatch` itself."""
+    if math.isclose(math.remainder(angle_deg, 180.0), 0.0, abs_tol=1e-12):
+        return hatch(labels, xs, ys, res_mm, pitch_mm, inset_px)
+    h, w = labels.shape
+    corners = np.array([[xs[0], ys[0]], [xs[-1], ys[0]], [xs[0], ys[-1]], [xs[-1], ys[-1]]])
+    uv = _turn(corners, -angle_deg)  # the frame in which the scanlines are horizontal
+    u0, v0 = float(uv[:, 0].min()), float(uv[:, 1].max())
+    cols = int(math.ceil((uv[:, 0].max() - u0) / res_mm)) + 1
+    rows = int(math.ceil((v0 - uv[:, 1].min()) / res_mm)) + 1
+    c, s = math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))
+    # each turned pixel (col, row) reads the source pixel its centre falls on
+    m = np.array([[c, s, (c * u0 - s * v0 - xs[0]) / res_mm],
+                  [-s, c, (ys[0] - s * u0 - c * v0) / res_mm]])
+    turned = cv2.warpAffine(labels.astype(np.float32), m, (cols, rows),
+                            flags=cv2.INTER_NEAREST | cv2.WARP_INVERSE_MAP,
+                            borderMode=cv2.BORDER_CONSTANT, borderValue=0.0)
+    us = u0 + np.arange(cols, dtype=np.float64) * res_mm
+    vs = v0 - np.arange(rows, dtype=np.float64) * res_mm
+    flat = hatch(turned.astype(np.int32), us, vs, res_mm, pitch_mm, inset_px)
+    return Hatch(flat.label, flat.line, _turn(flat.a_mm, angle_deg),
+                 _turn(flat.b_mm, angle_deg))
+
+
+def fill_regions(
+    labels: NDArray[np.int32],
+    xs: NDArray[np.float64],
+    ys: NDArray[np.float64],
+    res_mm: float,
+    pitch_mm: float,
+    angle_deg: float = 0.0,
+    style: str = "hatch",
+) -> Hatch:
+    """The fill of every region: a hatch at ``angle_deg``, or a cross-hatch (``style``
+    ``cross``: a second pass at ``angle_deg + 90``, after the first in each region)."""
+    first = hatch_at(labels, xs, ys, res_mm, pitch_mm, angle_deg)
+    if style == "hatch":
+        return first
+    if style != "cross":
+        raise ValueError(f"fill style {style!r}: use one of {', '.join(FILL_STYLES)}")
+    second = hatch_at(labels, xs, ys, res_mm, pitch_mm, angle_deg + 90.0)
+    offset = int(first.line.max()) + 1 if len(first.line) else 0
+    label = np.concatenate([first.label, second.label])
+    order = np.argsort(label, kind="stable")  # each region: its first pass, then its second
+    return Hatch(label[order], np.concatenate([first.line, second.line + offset])[order],
+                 np.concatenate([first.a_mm, second.a_mm])[order],
+                 np.concatenate([first.b_mm, second.b_mm])[order])

@@ -23,6 +23,8 @@ class ToolpathParams:
 
     Attributes:
         pitch_mm: hatch spacing (distance between fill scanlines), mm.
+        fill_style: ``hatch`` or ``cross`` (a second hatch at 90 degrees).
+        fill_angle_deg: the hatch's angle from the x axis, degrees (anticlockwise).
         step_mm: arc-length resampling step along strokes, mm.
         clearance_mm: needle height above the panel surface for travel, mm.
         plunge_mm: marking depth below the surface, mm.
@@ -50,6 +52,8 @@ class ToolpathParams:
     min_region_mm2: float
     panel_size_mm: tuple[float, float]
     panel_origin_m: tuple[float, float, float]
+    fill_style: str = "hatch"
+    fill_angle_deg: float = 0.0
 
     def __post_init__(self) -> None:
         positive = {
@@ -109,6 +113,8 @@ class ToolpathParams:
                 float(toolpath.panel_origin[1]),
                 float(toolpath.panel_origin[2]),
             ),
+            fill_style=toolpath.fill_style.name,
+            fill_angle_deg=float(toolpath.fill_angle_deg),
         )
 
     @property

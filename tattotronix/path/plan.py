@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 from tattotronix.art.grid import InkMask
 from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
-from tattotronix.path.fill import MIN_RUN_PX, hatch
+from tattotronix.path.fill import MIN_RUN_PX, fill_regions
 from tattotronix.path.laps import Laps
 from tattotronix.path.order import MAX_PASSES, Order, OrderResult, optimise_order
 from tattotronix.path.panel import check_fits, to_arm
@@ -224,7 +224,8 @@ def plan_toolpath(mask: InkMask, params: ToolpathParams, max_passes: int = MAX_P
         mask.ink, mask.res_mm, params.min_region_mm2, params.min_loop_px
     )
     laps.lap("regions")
-    fill = hatch(labels, mask.xs, mask.ys, mask.res_mm, params.pitch_mm)
+    fill = fill_regions(labels, mask.xs, mask.ys, mask.res_mm, params.pitch_mm,
+                        params.fill_angle_deg, params.fill_style)
     laps.lap("fill")
     drawing = assemble_drawing(mask, regions, fill)
     laps.lap("regions")

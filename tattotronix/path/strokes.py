@@ -15,7 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.art.grid import InkMask
-from tattotronix.path.fill import Hatch, hatch
+from tattotronix.path.fill import Hatch, fill_regions
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.polyline import (
     _EPS_MM,
@@ -167,7 +167,8 @@ def build_drawing(mask: InkMask, params: ToolpathParams) -> Drawing:
     labels, regions = find_regions(
         mask.ink, mask.res_mm, params.min_region_mm2, params.min_loop_px
     )
-    fill = hatch(labels, mask.xs, mask.ys, mask.res_mm, params.pitch_mm)
+    fill = fill_regions(labels, mask.xs, mask.ys, mask.res_mm, params.pitch_mm,
+                        params.fill_angle_deg, params.fill_style)
     return assemble_drawing(mask, regions, fill)
 
 
