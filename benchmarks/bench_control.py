@@ -28,7 +28,7 @@ from tattotronix.config.schema import PlantConfig
 from tattotronix.control.controller import Controller, Gains
 from tattotronix.control.dynamics import Dynamics
 from tattotronix.control.reference import reference_at_ticks
-from tattotronix.control.simulate import simulate
+from tattotronix.control.simulate import Loop, simulate
 from tattotronix.control.tracking import tracking_errors
 from tattotronix.io.artifacts import TrajectoryRecord
 from tattotronix.kinematics import Chain
@@ -91,8 +91,8 @@ def bench(repeat: int) -> list[Row]:
     reps = max(1, min(repeat, 3))  # each run is the whole ~10 min drawing
     rows: list[Row] = []
     rtf: dict[str, float] = {}
-    runs = [("mujoco", "engine"), ("mujoco", "python"), ("pybullet", "python"),
-            ("model", "python")]
+    runs: list[tuple[str, Loop]] = [("mujoco", "engine"), ("mujoco", "python"),
+                                    ("pybullet", "python"), ("model", "python")]
     assert {b for b, _ in runs} == set(BACKENDS)
     target = {("mujoco", "engine"): " (target 300x)", ("pybullet", "python"): " (target 60x)"}
     for backend, path in runs:
@@ -102,7 +102,7 @@ def bench(repeat: int) -> list[Row]:
             with make_plant(backend, settings, urdf=urdf, mjcf=mjcf,
                             joint_names=desc.joint_names, lower=desc.lower,
                             upper=desc.upper) as plant:
-                run = simulate(plant, ctl, ref, sample_every=20, loop=path)  # type: ignore[arg-type]
+                run = simulate(plant, ctl, ref, sample_every=20, loop=path)
             walls.append(run.wall_s)
         assert run is not None and run.loop == path
         wall = statistics.median(walls)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 import pytest
@@ -21,7 +22,7 @@ import tattotronix.path.costs as costs_mod
 from tattotronix.art.grid import InkMask
 from tattotronix.config.schema import MaskConfig, PanelConfig, ToolpathConfig
 from tattotronix.path.costs import SAME_POINT_MM, TransitionCosts, can_drag
-from tattotronix.path.inklookup import lines_on_ink, lines_on_ink_sampled
+from tattotronix.path.inklookup import ink_at, lines_on_ink
 from tattotronix.path.order import (
     _endpoints,
     _ends,
@@ -43,6 +44,8 @@ from tattotronix.path.polyline import (
     smooth_closed,
 )
 from tattotronix.path.strokes import Drawing, build_drawing
+
+from .test_toolpath_props import masks
 
 RES = 0.25
 PARAMS = ToolpathParams.from_config(ToolpathConfig(), MaskConfig(), PanelConfig())
@@ -176,25 +179,76 @@ def polylines(draw: st.DrawFn) -> list[NDArray[np.float64]]:
     return out
 
 
-@st.composite
-def masks(draw: st.DrawFn, size: int = 96) -> InkMask:
-    """Unions of discs, rectangles and rings, with cuts (as in test_toolpath_props)."""
-    yy, xx = np.mgrid[0:size, 0:size]
-    ink = np.zeros((size, size), bool)
-    shape = st.tuples(st.sampled_from(["disc", "rect", "ring", "cut"]),
-                      st.integers(0, size - 1), st.integers(0, size - 1),
-                      st.integers(5, 30), st.integers(2, 30))
-    for kind, r0, c0, a, b in draw(st.lists(shape, min_size=1, max_size=7)):
-        if kind == "disc":
-            ink |= np.hypot(yy - r0, xx - c0) <= a
-        elif kind == "rect":
-            ink |= (np.abs(yy - r0) <= a) & (np.abs(xx - c0) <= b)
-        elif kind == "ring":
-            r = np.hypot(yy - r0, xx - c0)
-            ink |= (r <= a) & (r > min(b, a - 2))
-        else:
-            ink &= np.hypot(yy - r0, xx - c0) > a / 2
-    return InkMask.centred(ink, RES)
+# --- the former line-on-ink test: the reference of lines_on_ink ---------------------------
+
+Arr = NDArray[Any]
+
+
+def lines_on_ink_sampled(
+    mask: InkMask, a_mm: NDArray[np.float64], b_mm: NDArray[np.float64], chunk: int = 1 << 20
+) -> NDArray[np.bool_]:
+    """:func:`lines_on_ink` by sampling (the former method, this file's reference).
+
+    The nearest-pixel cells are the pixel squares, so the line is cut where it crosses a
+    cell edge (x or y halfway between pixel centres); one sample inside each piece, plus
+    the two ends, sees every pixel the line passes through, however small the corner it
+    clips. A piece that only touches a cell corner is tested against every pixel there.
+
+    Args:
+        mask: the ink mask.
+        a_mm: (n, 2) line starts, mm.
+        b_mm: (n, 2) line ends, mm.
+        chunk: samples evaluated at once (bounds memory).
+
+    Returns:
+        (n,) bool: every pixel the line passes through is ink.
+    """
+    a = np.asarray(a_mm, dtype=np.float64).reshape(-1, 2)
+    b = np.asarray(b_mm, dtype=np.float64).reshape(-1, 2)
+    out = np.ones(len(a), dtype=bool)
+    if len(a) == 0:
+        return out
+    # endpoints in pixel units: u along columns, w along rows
+    ua, ub = (a[:, 0] - mask.xs[0]) / mask.res_mm, (b[:, 0] - mask.xs[0]) / mask.res_mm
+    wa, wb = (mask.ys[0] - a[:, 1]) / mask.res_mm, (mask.ys[0] - b[:, 1]) / mask.res_mm
+    # cell edges crossed: k + 0.5 for k in [first, last]
+    fu = np.ceil(np.minimum(ua, ub) - 0.5).astype(np.intp)
+    nu = np.maximum(np.floor(np.maximum(ua, ub) - 0.5).astype(np.intp) - fu + 1, 0)
+    fw = np.ceil(np.minimum(wa, wb) - 0.5).astype(np.intp)
+    nw = np.maximum(np.floor(np.maximum(wa, wb) - 0.5).astype(np.intp) - fw + 1, 0)
+    width = nu + nw + 2
+    # one dense (lines x samples) array per power-of-two bucket of crossing counts
+    bucket = np.ceil(np.log2(width)).astype(np.intp)
+    for b_id in np.unique(bucket):
+        group = np.flatnonzero(bucket == b_id)
+        ku, kw = int(nu[group].max()), int(nw[group].max())
+        step = max(1, chunk // (2 * (ku + kw + 2)))
+        for i in range(0, len(group), step):
+            g = group[i : i + step]
+            out[g] = _pieces_on_ink(mask, a[g], b[g], ua[g], ub[g], wa[g], wb[g],
+                                    fu[g], nu[g], fw[g], nw[g], ku, kw)
+    return out
+
+
+def _pieces_on_ink(mask: InkMask, a: Arr, b: Arr, ua: Arr, ub: Arr, wa: Arr, wb: Arr,
+                   fu: Arr, nu: Arr, fw: Arr, nw: Arr, ku: int, kw: int) -> NDArray[np.bool_]:
+    """:func:`lines_on_ink` for one block of lines with at most ku / kw edge crossings."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ju = np.arange(ku)[None, :]
+        tu = (fu[:, None] + ju + 0.5 - ua[:, None]) / (ub - ua)[:, None]
+        tu[ju >= nu[:, None]] = np.nan
+        jw = np.arange(kw)[None, :]
+        tw = (fw[:, None] + jw + 0.5 - wa[:, None]) / (wb - wa)[:, None]
+        tw[jw >= nw[:, None]] = np.nan
+    n = len(a)
+    t = np.sort(np.concatenate([np.zeros((n, 1)), np.ones((n, 1)), tu, tw], axis=1), axis=1)
+    t = np.clip(t, 0.0, 1.0)
+    mid = 0.5 * (t[:, 1:] + t[:, :-1])  # NaN after the last crossing
+    samples = np.concatenate([t[:, :2], mid], axis=1)  # t = 0 and each piece (t = 1 in mid)
+    samples = np.concatenate([samples, np.ones((n, 1))], axis=1)
+    valid = ~np.isnan(samples)
+    pts = a[:, None, :] + (b - a)[:, None, :] * np.where(valid, samples, 0.0)[:, :, None]
+    return (ink_at(mask, pts) | ~valid).all(axis=1)
 
 
 def _params(pitch: float, outlines_first: bool) -> ToolpathParams:

@@ -19,17 +19,16 @@ RES = 0.25
 SIZE = 96  # grid pixels per side (24 mm)
 PARAMS = ToolpathParams.from_config(ToolpathConfig(), MaskConfig(), PanelConfig())
 
-shape = st.tuples(
-    st.sampled_from(["disc", "rect", "ring", "cut"]),
-    st.integers(0, SIZE - 1), st.integers(0, SIZE - 1),  # centre (row, col)
-    st.integers(5, 30), st.integers(2, 30),  # radius / half sizes, px
-)
-
-
 @st.composite
-def masks(draw: st.DrawFn) -> InkMask:
-    yy, xx = np.mgrid[0:SIZE, 0:SIZE]
-    ink = np.zeros((SIZE, SIZE), bool)
+def masks(draw: st.DrawFn, size: int = SIZE) -> InkMask:
+    """Unions of discs, rectangles and rings, with cuts, on a ``size`` x ``size`` grid."""
+    shape = st.tuples(
+        st.sampled_from(["disc", "rect", "ring", "cut"]),
+        st.integers(0, size - 1), st.integers(0, size - 1),  # centre (row, col)
+        st.integers(5, 30), st.integers(2, 30),  # radius / half sizes, px
+    )
+    yy, xx = np.mgrid[0:size, 0:size]
+    ink = np.zeros((size, size), bool)
     for kind, r0, c0, a, b in draw(st.lists(shape, min_size=1, max_size=7)):
         if kind == "disc":
             ink |= np.hypot(yy - r0, xx - c0) <= a

@@ -12,12 +12,17 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import cv2
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.io.jsontypes import JsonDict
-from tattotronix.path.fidelity import InkGrid, below_runs, grid_over, rasterise_runs
+from tattotronix.path.fidelity import (
+    InkGrid,
+    below_runs,
+    distance_to,
+    grid_over,
+    rasterise_runs,
+)
 
 __all__ = ["InkGrid", "InkComparison", "compare_ink", "ink_grid", "rasterise_ink"]
 
@@ -67,12 +72,7 @@ class InkComparison:
 
 def _worst_distance_px(a: NDArray[np.bool_], b: NDArray[np.bool_]) -> float:
     """max over pixels of ``a`` of the distance to the nearest pixel of ``b`` (px)."""
-    if not a.any():
-        return 0.0
-    if not b.any():
-        return float("inf")
-    dist = cv2.distanceTransform((~b).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    return float(dist[a].max())
+    return float(distance_to(b)[a].max()) if a.any() else 0.0
 
 
 def compare_ink(sim: NDArray[np.bool_], plan: NDArray[np.bool_], res_mm: float) -> InkComparison:

@@ -29,8 +29,8 @@ from tattotronix.art.grid import InkMask
 from tattotronix.io.jsontypes import JsonDict
 
 __all__ = ["ArtworkFidelity", "InkGrid", "PlannedInk", "artwork_fidelity", "artwork_on",
-           "below_runs", "fidelity_image", "grid_over", "planned_ink", "rasterise_runs",
-           "save_png"]
+           "below_runs", "distance_to", "fidelity_image", "grid_over", "planned_ink",
+           "rasterise_runs", "save_png"]
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
@@ -72,20 +72,25 @@ def grid_over(points_mm: Sequence[Array], res_mm: float, margin_mm: float = 1.0)
                    shape=(rows, cols))
 
 
+def _run_bounds(uvz_mm: Array, split: NDArray[np.integer] | None
+                ) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """(starts, stops) of the runs of consecutive points below the surface (z < 0); a
+    change of ``split`` (a stroke id per point) also ends a run."""
+    below = uvz_mm[:, 2] < 0.0
+    joined = below[1:] & below[:-1]  # point i and i + 1 belong to one run
+    if split is not None:
+        joined &= split[1:] == split[:-1]
+    first, last = below.copy(), below.copy()
+    first[1:] &= ~joined
+    last[:-1] &= ~joined
+    return np.flatnonzero(first), np.flatnonzero(last) + 1
+
+
 def below_runs(uvz_mm: Array, split: NDArray[np.integer] | None = None) -> list[Array]:
     """The runs of consecutive points below the surface (z < 0), as (m, 2) panel mm; a
     change of ``split`` (a stroke id per point) also ends a run."""
-    below = uvz_mm[:, 2] < 0.0
-    cut = np.zeros(len(below) + 1, dtype=bool)
-    if split is not None and len(split) > 1:
-        cut[1:-1] = split[1:] != split[:-1]
-    runs: list[Array] = []
-    edges = np.diff(np.concatenate(([0], below.astype(np.int8), [0])))
-    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
-        inner = a + np.flatnonzero(cut[a + 1:b]) + 1
-        bounds = [a, *inner.tolist(), b]
-        runs.extend(uvz_mm[s:e, :2] for s, e in zip(bounds[:-1], bounds[1:], strict=True))
-    return runs
+    starts, stops = _run_bounds(uvz_mm, split)
+    return [uvz_mm[a:b, :2] for a, b in zip(starts, stops, strict=True)]
 
 
 def rasterise_runs(runs: Sequence[Array], grid: InkGrid, needle_mm: float) -> Mask:
@@ -127,7 +132,7 @@ def _edge(img: Mask) -> Mask:
     return img & ~inner.astype(bool)
 
 
-def _distance_to(img: Mask) -> NDArray[np.float32]:
+def distance_to(img: Mask) -> NDArray[np.float32]:
     """Distance of every pixel to the nearest pixel of ``img`` (px; inf if none)."""
     if not img.any():
         return np.full(img.shape, np.inf, dtype=np.float32)
@@ -178,9 +183,9 @@ def artwork_fidelity(art: Mask, ink: Mask, res_mm: float, outlines: Mask | None 
     """
     n_ink, n_art = int(ink.sum()), int(art.sum())
     outside = ink & ~art
-    bleed_max = float(_distance_to(art)[outside].max()) * res_mm if outside.any() else 0.0
+    bleed_max = float(distance_to(art)[outside].max()) * res_mm if outside.any() else 0.0
     art_edge = _edge(art)
-    to_ink_edge = _distance_to(_edge(ink))[art_edge]
+    to_ink_edge = distance_to(_edge(ink))[art_edge]
 
     def cover(m: Mask) -> float:
         return float((m & art).sum()) / n_art if n_art else 0.0
@@ -225,10 +230,9 @@ def planned_ink(mask: InkMask, uvz_mm: Array, stroke: NDArray[np.integer],
     """
     corners = np.array([[mask.xs[0], mask.ys[0]], [mask.xs[-1], mask.ys[-1]]])
     grid = grid_over([corners, uvz_mm[uvz_mm[:, 2] < 0.0]], res_mm)
-    runs = below_runs(uvz_mm, stroke)
-    firsts = _run_starts(uvz_mm, stroke)
-    fill_run = np.asarray(stroke_fill, dtype=bool)[stroke[firsts]] if len(firsts) else \
-        np.zeros(0, dtype=bool)
+    starts, stops = _run_bounds(uvz_mm, stroke)
+    runs = [uvz_mm[a:b, :2] for a, b in zip(starts, stops, strict=True)]
+    fill_run = np.asarray(stroke_fill, dtype=bool)[stroke[starts]]
     outlines = rasterise_runs([r for r, f in zip(runs, fill_run, strict=True) if not f], grid,
                               needle_mm)
     fill = rasterise_runs([r for r, f in zip(runs, fill_run, strict=True) if f], grid,
@@ -236,14 +240,6 @@ def planned_ink(mask: InkMask, uvz_mm: Array, stroke: NDArray[np.integer],
     ink = outlines | fill
     art = artwork_on(mask, grid)
     return PlannedInk(art, ink, artwork_fidelity(art, ink, res_mm, outlines, fill))
-
-
-def _run_starts(uvz_mm: Array, split: NDArray[np.integer]) -> NDArray[np.intp]:
-    """The index of the first point of each run of :func:`below_runs` (same split)."""
-    below = uvz_mm[:, 2] < 0.0
-    start = below.copy()
-    start[1:] &= ~below[:-1] | (split[1:] != split[:-1])
-    return np.flatnonzero(start)
 
 
 def fidelity_image(art: Mask, ink: Mask) -> NDArray[np.uint8]:

@@ -6,21 +6,18 @@ a line through a pixel corner, or along a pixel edge, needs the pixels on both s
 :func:`lines_on_ink` walks each line strip by strip across the grid (one strip per column,
 or per row for a line that spans fewer rows than columns) and counts the background
 pixels it covers in each strip from prefix sums, with no loop per line.
-:func:`lines_on_ink_sampled` is the former method, kept as the reference of the tests: one
-sample inside each piece of the line between two cell edges, looked up with
-:func:`ink_at`.
+The former method, one sample inside each piece of the line between two cell edges
+looked up with :func:`ink_at`, is the tests' reference (tests/test_path_fast.py).
 """
 
 from __future__ import annotations
-
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.art.grid import InkMask
 
-__all__ = ["grid_index", "ink_at", "lines_on_ink", "lines_on_ink_sampled"]
+__all__ = ["grid_index", "ink_at", "lines_on_ink"]
 
 
 _TIE = 1e-9  # a coordinate this close to halfway between two pixels is a tie
@@ -138,73 +135,3 @@ def _strips_clear(
     k1 = np.clip(k1, v0[line], v1[line])
     background = runs[k1 + 1, s] - runs[k0, s]
     return np.bincount(line, weights=background, minlength=n) == 0
-
-
-def lines_on_ink_sampled(
-    mask: InkMask, a_mm: NDArray[np.float64], b_mm: NDArray[np.float64], chunk: int = 1 << 20
-) -> NDArray[np.bool_]:
-    """:func:`lines_on_ink` by sampling (the former method, the tests' reference).
-
-    The nearest-pixel cells are the pixel squares, so the line is cut where it crosses a
-    cell edge (x or y halfway between pixel centres); one sample inside each piece, plus
-    the two ends, sees every pixel the line passes through, however small the corner it
-    clips. A piece that only touches a cell corner is tested against every pixel there.
-
-    Args:
-        mask: the ink mask.
-        a_mm: (n, 2) line starts, mm.
-        b_mm: (n, 2) line ends, mm.
-        chunk: samples evaluated at once (bounds memory).
-
-    Returns:
-        (n,) bool: every pixel the line passes through is ink.
-    """
-    a = np.asarray(a_mm, dtype=np.float64).reshape(-1, 2)
-    b = np.asarray(b_mm, dtype=np.float64).reshape(-1, 2)
-    out = np.ones(len(a), dtype=bool)
-    if len(a) == 0:
-        return out
-    # endpoints in pixel units: u along columns, w along rows
-    ua, ub = (a[:, 0] - mask.xs[0]) / mask.res_mm, (b[:, 0] - mask.xs[0]) / mask.res_mm
-    wa, wb = (mask.ys[0] - a[:, 1]) / mask.res_mm, (mask.ys[0] - b[:, 1]) / mask.res_mm
-    # cell edges crossed: k + 0.5 for k in [first, last]
-    fu = np.ceil(np.minimum(ua, ub) - 0.5).astype(np.intp)
-    nu = np.maximum(np.floor(np.maximum(ua, ub) - 0.5).astype(np.intp) - fu + 1, 0)
-    fw = np.ceil(np.minimum(wa, wb) - 0.5).astype(np.intp)
-    nw = np.maximum(np.floor(np.maximum(wa, wb) - 0.5).astype(np.intp) - fw + 1, 0)
-    width = nu + nw + 2
-    # one dense (lines x samples) array per power-of-two bucket of crossing counts
-    bucket = np.ceil(np.log2(width)).astype(np.intp)
-    for b_id in np.unique(bucket):
-        group = np.flatnonzero(bucket == b_id)
-        ku, kw = int(nu[group].max()), int(nw[group].max())
-        step = max(1, chunk // (2 * (ku + kw + 2)))
-        for i in range(0, len(group), step):
-            g = group[i : i + step]
-            out[g] = _pieces_on_ink(mask, a[g], b[g], ua[g], ub[g], wa[g], wb[g],
-                                    fu[g], nu[g], fw[g], nw[g], ku, kw)
-    return out
-
-
-def _pieces_on_ink(
-    mask: InkMask, a: NDArray[Any], b: NDArray[Any], ua: NDArray[Any], ub: NDArray[Any],
-    wa: NDArray[Any], wb: NDArray[Any], fu: NDArray[Any], nu: NDArray[Any], fw: NDArray[Any],
-    nw: NDArray[Any], ku: int, kw: int,
-) -> NDArray[np.bool_]:
-    """:func:`lines_on_ink` for one block of lines with at most ku / kw edge crossings."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ju = np.arange(ku)[None, :]
-        tu = (fu[:, None] + ju + 0.5 - ua[:, None]) / (ub - ua)[:, None]
-        tu[ju >= nu[:, None]] = np.nan
-        jw = np.arange(kw)[None, :]
-        tw = (fw[:, None] + jw + 0.5 - wa[:, None]) / (wb - wa)[:, None]
-        tw[jw >= nw[:, None]] = np.nan
-    n = len(a)
-    t = np.sort(np.concatenate([np.zeros((n, 1)), np.ones((n, 1)), tu, tw], axis=1), axis=1)
-    t = np.clip(t, 0.0, 1.0)
-    mid = 0.5 * (t[:, 1:] + t[:, :-1])  # NaN after the last crossing
-    samples = np.concatenate([t[:, :2], mid], axis=1)  # t = 0 and each piece (t = 1 in mid)
-    samples = np.concatenate([samples, np.ones((n, 1))], axis=1)
-    valid = ~np.isnan(samples)
-    pts = a[:, None, :] + (b - a)[:, None, :] * np.where(valid, samples, 0.0)[:, :, None]
-    return (ink_at(mask, pts) | ~valid).all(axis=1)

@@ -211,8 +211,7 @@ class MujocoPid(EnginePid):
         ctrl = np.empty((1, steps, m.nu))
         ctrl[0][:, self._pos] = q_ref
         ctrl[0][:, self._pos + 1] = v_ref
-        state, sensors = self._rollout.rollout(m, self.data, self._state[None], ctrl,
-                                               skip_checks=False)
+        state, sensors = self._rollout.rollout(m, self.data, self._state[None], ctrl)
         states = state[0]
         q = np.empty((steps, n))
         qd = np.empty((steps, n))

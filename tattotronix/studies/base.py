@@ -2,8 +2,10 @@
 
 A closed-loop study (control, approach, resample, rate: the original's, docs/original.md,
 "2.11 The resample study" and "5.5 Tracking error" to "5.8 The rate study") is a sweep over
-ordinary config keys, one *case* per run of its stage
-(``python stages/<script>.py [overrides]``, or ``-m KEY=a,b,c`` for a sweep). Each study
+ordinary config keys. Its stage runs every configured *case* at once
+(``study.all_cases=true``, what dvc.yaml runs: :meth:`ClosedLoopStudy.run_all`, in a pool
+of one forked process per core); by hand, ``python stages/<script>.py [overrides]`` runs
+the one case the settings describe, and ``-m KEY=a,b,c`` a sweep. Each study
 is one module of this package holding one :class:`ClosedLoopStudy`, ``STUDY``, which
 states:
 
@@ -12,16 +14,18 @@ states:
 * ``windows``: the stretches each case runs: ``None`` (the whole drawing) and/or
   ``"busiest"`` (the busiest ``study.window_s`` window, where the original reported);
 * :meth:`~ClosedLoopStudy.cases`: the configured cases (``conf/study``), name ->
-  overrides, as dvc.yaml's ``foreach``/``matrix`` runs them;
-* :meth:`~ClosedLoopStudy.case_name`: a case's name from the swept values (dvc.yaml names
-  the outputs the same way);
+  overrides;
+* :meth:`~ClosedLoopStudy.case_name`: a case's name from the swept values (it must equal
+  the configured name: the stage refuses otherwise);
+* :meth:`~ClosedLoopStudy.cost`: how long a case runs against the others (the pool starts
+  the longest first);
 * :meth:`~ClosedLoopStudy.plant_dt_s`, :meth:`~ClosedLoopStudy.window_metrics` and
   :meth:`~ClosedLoopStudy.case_metrics`: what the study changes or adds to a case;
 * :meth:`~ClosedLoopStudy.figure` and :meth:`~ClosedLoopStudy.summary`: its figure and
   its conclusions, from the stored cases (the ``studies`` stage), each read back as a
   :class:`StudyCase`.
 
-The machinery lives here, once: :meth:`ClosedLoopStudy.run_case` plays the drawing closed
+The machinery lives here, once: :meth:`ClosedLoopStudy.compute_case` plays the drawing closed
 loop (:func:`tattotronix.control.drawing.run_closed_loop`, the plant of ``backend``) over
 each window, scores it as the original did (docs/original.md, "5.5 Tracking error"), and
 writes ``data/metrics/<study>/<name>/<case>.json`` (settings, drawing figures, the tracking
@@ -29,7 +33,8 @@ metrics of each window, the loop analysis; no wall times, so ``dvc metrics diff`
 only what changed) and ``data/studies/<study>/<name>/<case>.npz`` (the sampled error
 series of each window, ``<window>_t``, ``<window>_error_um``, ``<window>_down`` and
 ``<window>_settled``, with the provenance:
-:class:`~tattotronix.io.artifacts.StudySeriesRecord`). In a ``-m`` sweep, any
+:class:`~tattotronix.io.artifacts.StudySeriesRecord`), which :meth:`ClosedLoopStudy.write_case`
+writes. In a ``-m`` sweep, any
 override that is not a swept key is added to the case name
 (:meth:`tattotronix.io.outputs.Outputs.sweep_suffix`), so no two jobs write the same file.
 :meth:`ClosedLoopStudy.stage_body` is the whole of a study's stage script.
@@ -40,7 +45,8 @@ re-planned in memory from the artwork (:func:`~tattotronix.control.drawing.resol
 Adding a study: its module here (a subclass, and ``STUDY``), its line in
 :mod:`tattotronix.studies.registry` (for the ``studies`` stage), its settings in
 ``conf/study`` (and their fields in ``StudyConfig``, ``tattotronix/config/schema.py``),
-a three-line ``stages/<script>.py``, and its stage in ``dvc.yaml``.
+a three-line ``stages/<script>.py``, and its stage in ``dvc.yaml`` (one stage, with the
+study's two folders as its outputs).
 """
 
 from __future__ import annotations
@@ -210,12 +216,11 @@ class ClosedLoopStudy(ABC):
     @abstractmethod
     def cases(self, study: StudyConfig) -> dict[str, list[str]]:
         """The configured cases (``study``: ``conf/study``): case name -> the overrides
-        that run it (dvc.yaml runs the same values)."""
+        that run it."""
 
     @abstractmethod
     def case_name(self, cfg: Config) -> str:
-        """The case's name, from the swept values (as dvc.yaml's ``foreach``/``matrix``
-        names the outputs)."""
+        """The case's name, from the swept values (names its files)."""
 
     def plant_dt_s(self, cfg: Config) -> float | None:
         """The plant's step for this study's runs; None: ``plant.dt_s``."""
@@ -329,10 +334,13 @@ class ClosedLoopStudy(ABC):
 
         Raises:
             TattotronixError: a case refused (the message names it); nothing is written.
-            ConfigError: a configured case is named other than its settings name it.
+            ConfigError: no case is configured, or one is named other than its settings
+                name it.
         """
         configs = {case: with_overrides(cfg, overrides)
                    for case, overrides in self.cases(cfg.study).items()}
+        if not configs:
+            raise ConfigError(f"the {self.name} study has no cases configured (conf/study)")
         for case, c in configs.items():
             if self.case_name(c) != case:
                 raise ConfigError(f"the {self.name} case '{case}' runs as "
@@ -342,8 +350,9 @@ class ClosedLoopStudy(ABC):
                                                  workers)}
         results = [done[case] for case in configs]
         name = artwork_name(cfg.artwork)
+        first = next(iter(configs))
         folders = (out.path("metrics", self.name, name),
-                   StudySeriesRecord.path(out.data, self.name, name, "x").parent)
+                   StudySeriesRecord.path(out.data, self.name, name, first).parent)
         for folder, suffix in zip(folders, (".json", ".npz"), strict=True):
             for stale in sorted(folder.glob(f"*{suffix}")) if folder.is_dir() else []:
                 if stale.stem not in configs:  # a hand run's case: not this stage's
