@@ -11,7 +11,7 @@ file under git) and the figure data/figures/<name>/actuator.png.
 The study settings and options come from ``cfg.study.actuator``; the servo per joint and
 the dead bands from ``cfg.robot``; the PCA9685 frame rate from the servo calibration
 (``hardware.calibration_file`` if set, else ``hardware.servos``); the line width from
-``draw.needle_mm`` and the plunge from ``toolpath.plunge_mm``.
+``toolpath.needle_width_mm`` and the plunge from ``toolpath.plunge_mm``.
 """
 
 from __future__ import annotations

@@ -3,7 +3,9 @@
 Writes ``data/artwork/<name>.png`` (8-bit grey, ``mask.width_mm`` wide at ``mask.res_mm``
 per pixel) and ``data/metrics/artwork/<name>.json``. ``artwork.source`` picks the file
 (null: the built-in emblem; ``portrait``: the built-in photograph); ``artwork.name``
-names the outputs and defaults to the file's stem.
+names the outputs and defaults to the file's stem. With ``artwork.vector=true`` an SVG's
+stroked lines are also written, from its geometry, to ``data/artwork/<name>-lines.npz``
+(empty otherwise; tattotronix/art/vector.py).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from PIL import Image
 
 from tattotronix.art.artwork import artwork_name, load_artwork
 from tattotronix.art.mask import otsu_ink
+from tattotronix.art.vector import VectorLines, artwork_lines
 from tattotronix.config.schema import Config
 from tattotronix.io.outputs import Outputs
 from tattotronix.stage import run_stage
@@ -31,6 +34,9 @@ def main(cfg: Config, out: Outputs) -> None:
         svg_local_files=cfg.artwork.svg_local_files,
     )
     ink, _, _ = otsu_ink(art.grey)
+    lines = (artwork_lines(cfg.artwork.source, art.shape, art.res_mm, cfg.toolpath.step_mm)
+             if cfg.artwork.vector else VectorLines.empty())
+    lines.save(out.tmp_path(out.path("artwork", f"{name}-lines.npz")))
     width_mm, height_mm = art.size_mm
     dpi = MM_PER_INCH / art.res_mm
 
@@ -51,6 +57,7 @@ def main(cfg: Config, out: Outputs) -> None:
             "width_mm": width_mm,
             "height_mm": height_mm,
             "ink_fraction": float(ink.mean()),
+            "vector_lines": len(lines.paths),
         },
     )
     log.info("artwork %s: %s (%.1f x %.1f mm, ink ~%.1f %%)", name, png, width_mm,

@@ -1,12 +1,14 @@
 """Stage ``toolpath``: the ink mask to the ordered 3-D needle path.
 
-Reads ``data/mask/<name>.npz`` (run the ``mask`` stage first) and writes
+Reads ``data/mask/<name>.npz`` (run the ``mask`` stage first) and, with ``artwork.vector``,
+the artwork's vector lines ``data/artwork/<name>-lines.npz``, and writes
 ``data/toolpath/<name>.npz`` (``uvz_mm``, ``kind``, ``xyz_m``, ``stroke``, ``t_s``, and per
-drawn stroke ``stroke_kind`` and ``stroke_region``; ``provenance``), the figures
-``data/figures/<name>/toolpath.png`` and ``data/figures/<name>/artwork_ink.png`` (the planned
-ink over the artwork, bleed in red) and ``data/metrics/toolpath/<name>.json`` (ours and,
-under ``original_order``, the same figures for the original's ordering rule; under
-``artwork``, the planned ink against the artwork: tattotronix/path/fidelity.py).
+drawn stroke ``stroke_kind``, ``stroke_region`` and ``stroke_width_mm``; ``provenance``),
+the figures ``data/figures/<name>/toolpath.png`` and
+``data/figures/<name>/artwork_ink.png`` (the planned ink over the artwork, bleed in red)
+and ``data/metrics/toolpath/<name>.json`` (ours and, under ``original_order``, the same
+figures for the original's ordering rule; under ``artwork``, the planned ink against the
+artwork: tattotronix/path/fidelity.py).
 """
 
 from __future__ import annotations
@@ -15,6 +17,7 @@ import logging
 
 from tattotronix.art.artwork import artwork_name
 from tattotronix.art.grid import InkMask
+from tattotronix.art.vector import VectorLines
 from tattotronix.config.schema import Config
 from tattotronix.io.artifacts import ToolpathRecord, make_provenance
 from tattotronix.io.outputs import Outputs
@@ -22,7 +25,6 @@ from tattotronix.path.fidelity import fidelity_image, planned_ink, save_png
 from tattotronix.path.figure import toolpath_figure
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.plan import plan_toolpath
-from tattotronix.path.strokes import StrokeKind
 from tattotronix.stage import run_stage
 
 log = logging.getLogger("tattotronix.stages.toolpath")
@@ -33,8 +35,13 @@ def main(cfg: Config, out: Outputs) -> None:
     name = artwork_name(cfg.artwork)
     src = out.require(out.path("mask", f"{name}.npz"), "mask")
     mask = InkMask.load(src)  # refuses a corrupt file, naming it and the 'mask' stage
+    inputs = {"mask": src}
+    vector = None
+    if cfg.artwork.vector:  # the SVG's own lines, from the artwork stage
+        inputs["lines"] = out.require(out.path("artwork", f"{name}-lines.npz"), "artwork")
+        vector = VectorLines.load(inputs["lines"])
     params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
-    tp = plan_toolpath(mask, params)
+    tp = plan_toolpath(mask, params, vector=vector)
 
     seq = tp.order.sequence
     ToolpathRecord(
@@ -45,14 +52,15 @@ def main(cfg: Config, out: Outputs) -> None:
         t_s=tp.t_s,
         stroke_kind=tp.drawing.kinds[seq],
         stroke_region=tp.drawing.region_of[seq],
+        stroke_width_mm=tp.drawing.width_mm[seq],
     ).save(out.tmp_path(ToolpathRecord.path(out.data, name=name)),
-           make_provenance(cfg, {"mask": src}))
+           make_provenance(cfg, inputs))
     toolpath_figure(
         tp, params.panel_size_mm, out.tmp_path(out.path("figures", name, "toolpath.png")), name
     )
     ink = planned_ink(mask, tp.path.uvz_mm, tp.path.stroke,
-                      tp.drawing.kinds[seq] == StrokeKind.FILL, float(cfg.draw.needle_mm),
-                      float(cfg.draw.ink_res_mm))
+                      tp.drawing.is_fill[seq], float(cfg.toolpath.needle_width_mm),
+                      float(cfg.draw.ink_res_mm), tp.drawing.width_mm[seq])
     save_png(fidelity_image(ink.art, ink.ink), float(cfg.draw.ink_res_mm),
              out.tmp_path(out.path("figures", name, "artwork_ink.png")))
     out.write_json(out.path("metrics", "toolpath", f"{name}.json"),

@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike
 from tattotronix.art.artwork import load_artwork
 from tattotronix.art.grid import InkMask
 from tattotronix.art.mask import make_mask
+from tattotronix.art.vector import artwork_lines
 from tattotronix.config.schema import Config, IkConfig
 from tattotronix.kinematics import Chain, IkOptions, IkResult, solve_path
 from tattotronix.path.params import ToolpathParams
@@ -118,8 +119,10 @@ def plan_drawing(cfg: Config, source: str | Path | None, name: str,
             off the panel, unreachable points, a speed too high).
     """
     mask = mask_of(cfg, source, name)
+    vector = (artwork_lines(source, mask.ink.shape, mask.res_mm, cfg.toolpath.step_mm)
+              if cfg.artwork.vector else None)
     tp = plan_toolpath(mask, ToolpathParams.from_config(cfg.toolpath, cfg.mask,
-                                                        cfg.robot.panel))
+                                                        cfg.robot.panel), vector=vector)
     chain = Chain.from_description(desc)
     res = solve_ik(chain, tp.xyz_m, tp.path.uvz_mm, cfg.ik)
     tcp, _ = chain.fk(res.q)

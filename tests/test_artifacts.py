@@ -31,7 +31,7 @@ def _records() -> dict[str, Any]:
         "toolpath": A.ToolpathRecord(
             uvz_mm=_f(N, 3), kind=kind, xyz_m=_f(N, 3), stroke=np.zeros(N, np.int32),
             t_s=np.linspace(0, 1, N), stroke_kind=np.array([1], np.int8),
-            stroke_region=np.array([0], np.int32)),
+            stroke_region=np.array([0], np.int32), stroke_width_mm=np.array([0.3])),
         "ik": A.IkRecord(joints=JOINTS, q=_f(N, J), tcp=_f(N, 3), residual=_f(N),
                          uvz_mm=_f(N, 3), xyz_m=_f(N, 3), kind=kind,
                          stroke=np.zeros(N, np.int32)),

@@ -457,7 +457,8 @@ def _toolpath(data: Path, n: int = 3) -> Path:
     ToolpathRecord(uvz_mm=uvz, kind=np.array([2, 1, 1], np.int8)[:n],
                    xyz_m=np.array([0.21, 0.0, 0.005]) + uvz / 1000.0,
                    stroke=np.zeros(n, np.int32), t_s=np.arange(n, dtype=float),
-                   stroke_kind=np.ones(1, np.int8), stroke_region=np.zeros(1, np.int32)
+                   stroke_kind=np.ones(1, np.int8), stroke_region=np.zeros(1, np.int32),
+                   stroke_width_mm=np.full(1, np.nan)
                    ).save(path, make_provenance({}, {}))
     return path
 

@@ -355,7 +355,8 @@ def _ik_stage(data: Path, *overrides: str) -> subprocess.CompletedProcess[str]:
 def _toolpath_rest(n: int) -> dict[str, np.ndarray]:
     """The toolpath keys the ik stage does not use, and a provenance."""
     return {"t_s": np.arange(n, dtype=float), "stroke_kind": np.ones(1, np.int8),
-            "stroke_region": np.zeros(1, np.int32), "provenance": np.array("{}")}
+            "stroke_region": np.zeros(1, np.int32),
+            "stroke_width_mm": np.full(1, np.nan), "provenance": np.array("{}")}
 
 
 def test_ik_stage_refuses_an_unreachable_placement_and_writes_nothing(tmp_path: Path) -> None:

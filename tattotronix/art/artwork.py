@@ -64,7 +64,8 @@ log = logging.getLogger(__name__)
 ASSETS_DIR = Path(__file__).resolve().parent / "assets"
 """The built-in artworks (see ``assets/LICENSES.md``)."""
 
-BUILTINS: dict[str, str] = {"emblem": "emblem.svg", "portrait": "portrait.jpg"}
+BUILTINS: dict[str, str] = {"emblem": "emblem.svg", "portrait": "portrait.jpg",
+                           "lineart": "lineart.svg"}
 """Built-in artwork name -> file under :data:`ASSETS_DIR`."""
 
 DEFAULT_ARTWORK = "emblem"

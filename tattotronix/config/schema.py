@@ -295,10 +295,13 @@ class MaskMethod(Enum):
 
 
 class FillStyle(Enum):
-    """How regions are filled: one hatch, or a cross-hatch (a second at 90 degrees)."""
+    """How regions are filled: one hatch, a cross-hatch (a second at 90 degrees), rings
+    parallel to the outline (concentric), or a hatch at the needle's width (solid)."""
 
     hatch = "hatch"
     cross = "cross"
+    concentric = "concentric"
+    solid = "solid"
 
 
 @settings
@@ -446,6 +449,8 @@ class ArtworkConfig:
     # an SVG may refer to files in its own folder (<image href="photo.png">); false: an SVG
     # must be self-contained (any reference to another file or a URL is refused)
     svg_local_files: bool = False
+    # an SVG's stroked lines are drawn from its geometry, not from the mask (line art)
+    vector: bool = False
 
 
 @settings
@@ -469,6 +474,11 @@ class ToolpathConfig:
 
     pitch_mm: float = bounded(1.2, lo=MIN_PITCH_MM, hi=100, unit="mm",
                               why="the hatch spacing")
+    # the needle's ink line width: outlines run half of it inside the artwork's edge
+    needle_width_mm: float = bounded(0.3, lo=0, lo_open=True, hi=10, unit="mm")
+    compensate: bool = True  # false: the original's outlines on the edge, no line art
+    # parts narrower than this are drawn as one pass along their centreline (0: none)
+    line_max_mm: float = bounded(0.6, lo=0, hi=100, unit="mm")
     fill_style: FillStyle = FillStyle.hatch
     fill_angle_deg: float = bounded(0.0, lo=-180, hi=180, unit="deg",
                                     why="the hatch's angle from the x axis")
@@ -485,6 +495,11 @@ class ToolpathConfig:
     outlines_first: bool = True
     panel_origin: list[float] = bounded(factory=lambda: [0.21, 0.0, 0.005], lo=-1, hi=1,
                                         unit="m")
+
+    @property
+    def needle_um(self) -> float:
+        """The ink line width, um."""
+        return float(self.needle_width_mm) * 1e3
 
     @property
     def pitch_m(self) -> float:
@@ -674,15 +689,10 @@ class DrawConfig:
     sample_s: float = bounded(0.02, lo=1e-5, hi=60, unit="s")  # tracking error sampling
     # "settled" excludes settle_periods / wn after each entry
     settle_periods: float = bounded(4.0, lo=0, hi=1000)
-    needle_mm: float = bounded(0.3, lo=0, lo_open=True, hi=10, unit="mm")  # ink line width
     ink_res_mm: float = bounded(0.05, lo=MIN_INK_RES_MM, hi=10, unit="mm",
                                 why="the ink raster's pixel")
     progress: bool = True  # a progress bar with simulated time and real-time factor
 
-    @property
-    def needle_um(self) -> float:
-        """The ink line width, um."""
-        return float(self.needle_mm) * 1e3
 
 
 @settings

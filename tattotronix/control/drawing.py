@@ -40,6 +40,7 @@ from tattotronix.io.artifacts import (
     TRAJECTORY,
     IkRecord,
     RunLogRecord,
+    ToolpathRecord,
     TrajectoryRecord,
     make_provenance,
     run_dir,
@@ -48,7 +49,14 @@ from tattotronix.io.artifacts import (
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain
-from tattotronix.path.fidelity import artwork_fidelity, artwork_on, fidelity_image, save_png
+from tattotronix.path.fidelity import (
+    artwork_fidelity,
+    artwork_on,
+    fidelity_image,
+    line_runs,
+    line_width,
+    save_png,
+)
 from tattotronix.plants import PlantSettings, make_plant
 from tattotronix.robot.description import RobotDescription, build_description
 from tattotronix.trajectory import JointPath, load_trajectory
@@ -422,14 +430,18 @@ def _score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
     corners = None if mask is None else np.array([[mask.xs[0], mask.ys[0]],
                                                   [mask.xs[-1], mask.ys[-1]]])
     grid = ink_grid([tip, tip_ref], origin, res, cover_mm=corners)
-    sim_ink = rasterise_ink(tip, origin, grid, float(cfg.draw.needle_mm))
-    plan_ink = rasterise_ink(tip_ref, origin, grid, float(cfg.draw.needle_mm))
+    sim_ink = rasterise_ink(tip, origin, grid, float(cfg.toolpath.needle_width_mm))
+    plan_ink = rasterise_ink(tip_ref, origin, grid, float(cfg.toolpath.needle_width_mm))
     ink = compare_ink(sim_ink, plan_ink, res)
     against_art: dict[str, Any] = {"artwork": None, "artwork_plan": None}
     art = None if mask is None else artwork_on(mask, grid)
     if art is not None:
-        against_art = {"artwork": artwork_fidelity(art, sim_ink, res).metrics(),
-                       "artwork_plan": artwork_fidelity(art, plan_ink, res).metrics()}
+        lines = _planned_lines(out.data, drawing)
+        sim_lw, plan_lw = ((line_width(sim_ink, grid, *lines), line_width(plan_ink, grid, *lines))
+                           if lines else (None, None))
+        against_art = {"artwork": artwork_fidelity(art, sim_ink, res, lines=sim_lw).metrics(),
+                       "artwork_plan": artwork_fidelity(art, plan_ink, res,
+                                                        lines=plan_lw).metrics()}
 
     run_folder = run_dir(out.data, label)
     ink_img, cmp_img = _ink_images(sim_ink, plan_ink)
@@ -461,6 +473,17 @@ def _score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
              _fmt(metrics["settled_max_um"]), _fmt(metrics["marking_max_um"]),
              run.peak_torque_nm, ink.iou, run.realtime_factor, run.wall_s, run.loop)
     return metrics
+
+
+def _planned_lines(data: Path, drawing: Drawing) -> tuple[list[Array], list[float]] | None:
+    """The line art's centrelines and designed widths from the toolpath the drawing was
+    planned from (a stored or re-timed drawing); None where there is none."""
+    stored = ToolpathRecord.path(data, name=drawing.name)
+    if drawing.origin == "planned" or not stored.exists():
+        return None
+    rec = ToolpathRecord.load(stored)
+    runs, widths = line_runs(rec.uvz_mm, rec.stroke, rec.stroke_width_mm)
+    return (runs, widths) if runs else None
 
 
 def _artwork_mask(cfg: Config, data: Path, drawing: Drawing) -> InkMask | None:

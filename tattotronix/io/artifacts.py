@@ -12,7 +12,8 @@ record              path under ``paths.data``                  stage       keys
 ToolpathRecord      ``toolpath/<name>.npz``                    toolpath    uvz_mm, kind,
                                                                            xyz_m, stroke,
                                                                            t_s, stroke_kind,
-                                                                           stroke_region
+                                                                           stroke_region,
+                                                                           stroke_width_mm
 IkRecord            ``ik/<name>.npz``                          ik          joints, q, tcp,
                                                                            residual, uvz_mm,
                                                                            xyz_m, kind,
@@ -332,9 +333,11 @@ Float = NDArray[np.float64]
 
 TOOLPATH = ArtifactSpec(
     "toolpath", "toolpath/{name}.npz", "toolpath",
-    ("uvz_mm", "kind", "xyz_m", "stroke", "t_s", "stroke_kind", "stroke_region"),
+    ("uvz_mm", "kind", "xyz_m", "stroke", "t_s", "stroke_kind", "stroke_region",
+     "stroke_width_mm"),
     {"uvz_mm": "float64", "kind": "int8", "xyz_m": "float64", "t_s": "float64",
-     "stroke": "int32", "stroke_kind": "int8", "stroke_region": "int32"})
+     "stroke": "int32", "stroke_kind": "int8", "stroke_region": "int32",
+     "stroke_width_mm": "float64"})
 
 IK = ArtifactSpec(
     "IK path", "ik/{name}.npz", "ik",
@@ -383,6 +386,8 @@ class ToolpathRecord(_Record):
         t_s: (N,) the toolpath's own timing, s.
         stroke_kind: per drawn stroke, its kind (int8).
         stroke_region: per drawn stroke, its ink region (int32).
+        stroke_width_mm: per drawn stroke, a line's designed width, mm (NaN for a stroke
+            that is not a line along a centreline).
         provenance: the parsed provenance (empty before saving).
     """
 
@@ -395,6 +400,7 @@ class ToolpathRecord(_Record):
     t_s: Float
     stroke_kind: NDArray[np.int8]
     stroke_region: NDArray[np.int32]
+    stroke_width_mm: Float
     provenance: Mapping[str, JsonValue] = field(default_factory=dict)
 
 

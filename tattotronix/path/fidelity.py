@@ -13,6 +13,10 @@ artwork is the ink mask, each fine pixel taking the mask pixel it falls in. Repo
 * **edge error**: for every pixel on the artwork's edge, the distance to the nearest edge
   of the ink (mm): mean and worst. An outline run on the artwork's edge puts half the
   needle's width outside it, so its edge error is about half the needle width.
+* **line width** (line art drawn along its centreline): per line, the median of the
+  drawn width (twice the distance from the centreline to the ink's edge) against the
+  median designed width (the artwork's, read the same way when the line was planned):
+  their means over the lines, and the worst difference.
 """
 
 from __future__ import annotations
@@ -27,10 +31,11 @@ from numpy.typing import NDArray
 
 from tattotronix.art.grid import InkMask
 from tattotronix.io.jsontypes import JsonDict
+from tattotronix.path.inset import pixel_width
 
-__all__ = ["ArtworkFidelity", "InkGrid", "PlannedInk", "artwork_fidelity", "artwork_on",
-           "below_runs", "distance_to", "fidelity_image", "grid_over", "planned_ink",
-           "rasterise_runs", "save_png"]
+__all__ = ["ArtworkFidelity", "InkGrid", "LineWidth", "PlannedInk", "artwork_fidelity",
+           "artwork_on", "below_runs", "distance_to", "fidelity_image", "grid_over",
+           "line_runs", "line_width", "planned_ink", "rasterise_runs", "save_png"]
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
@@ -141,6 +146,48 @@ def distance_to(img: Mask) -> NDArray[np.float32]:
 
 
 @dataclass(frozen=True)
+class LineWidth:
+    """Drawn against designed width of the lines drawn along their centreline (mm).
+
+    Attributes:
+        lines: how many lines. designed_mean_mm, drawn_mean_mm: the means over the lines
+        of each line's median width. worst_diff_mm: the largest difference of the two
+        medians of one line.
+    """
+
+    lines: int
+    designed_mean_mm: float
+    drawn_mean_mm: float
+    worst_diff_mm: float
+
+    def metrics(self) -> JsonDict:
+        """JSON-ready."""
+        return {"lines": self.lines, "designed_mean_mm": self.designed_mean_mm,
+                "drawn_mean_mm": self.drawn_mean_mm, "worst_diff_mm": self.worst_diff_mm}
+
+
+def line_width(ink: Mask, grid: InkGrid, lines: Sequence[Array], designed_mm: Sequence[float]
+               ) -> LineWidth | None:
+    """The drawn width of each line (panel mm points along its centreline) against its
+    designed width; None when there is no line."""
+    if not lines:
+        return None
+    inside = np.asarray(cv2.distanceTransform(ink.astype(np.uint8), cv2.DIST_L2,
+                                              cv2.DIST_MASK_PRECISE), dtype=np.float64)
+    rows, cols = grid.shape
+    drawn = []
+    for pts in lines:
+        px = np.rint(grid.to_px(pts)).astype(np.int64)
+        ok = (px[:, 0] >= 0) & (px[:, 0] < cols) & (px[:, 1] >= 0) & (px[:, 1] < rows)
+        d = inside[px[ok, 1], px[ok, 0]]
+        drawn.append(float(np.median(pixel_width(d, grid.res_mm))) if len(d) else 0.0)
+    want = np.asarray(designed_mm, dtype=np.float64)
+    got = np.asarray(drawn)
+    return LineWidth(len(lines), float(want.mean()), float(got.mean()),
+                     float(np.abs(got - want).max()))
+
+
+@dataclass(frozen=True)
 class ArtworkFidelity:
     """Ink against the artwork (see the module docstring; lengths in mm, shares 0..1).
 
@@ -152,6 +199,7 @@ class ArtworkFidelity:
             alone (None where the ink is not split by stroke kind).
         edge_mean_mm, edge_max_mm: distance from the artwork's edge to the ink's edge.
         res_mm: the grid's pixel.
+        line_width: the lines' drawn against designed width (None: no line art).
     """
 
     bleed_share: float
@@ -162,17 +210,20 @@ class ArtworkFidelity:
     edge_mean_mm: float
     edge_max_mm: float
     res_mm: float
+    line_width: LineWidth | None = None
 
     def metrics(self) -> JsonDict:
         """JSON-ready (the ``artwork`` section of a metrics file)."""
         return {"bleed_share": self.bleed_share, "bleed_max_mm": self.bleed_max_mm,
                 "coverage": self.coverage, "coverage_outlines": self.coverage_outlines,
                 "coverage_fill": self.coverage_fill, "edge_mean_mm": self.edge_mean_mm,
-                "edge_max_mm": self.edge_max_mm, "res_mm": self.res_mm}
+                "edge_max_mm": self.edge_max_mm, "res_mm": self.res_mm,
+                "line_width": None if self.line_width is None else self.line_width.metrics()}
 
 
 def artwork_fidelity(art: Mask, ink: Mask, res_mm: float, outlines: Mask | None = None,
-                     fill: Mask | None = None) -> ArtworkFidelity:
+                     fill: Mask | None = None, lines: LineWidth | None = None
+                     ) -> ArtworkFidelity:
     """Compare ink with the artwork on one grid (``res_mm`` pixels).
 
     Args:
@@ -180,6 +231,7 @@ def artwork_fidelity(art: Mask, ink: Mask, res_mm: float, outlines: Mask | None 
         ink: all the ink.
         res_mm: the pixel, mm.
         outlines, fill: the outlines' and the fill's ink alone, if known.
+        lines: the line art's width (:func:`line_width`), if any.
     """
     n_ink, n_art = int(ink.sum()), int(art.sum())
     outside = ink & ~art
@@ -199,6 +251,7 @@ def artwork_fidelity(art: Mask, ink: Mask, res_mm: float, outlines: Mask | None 
         edge_mean_mm=float(to_ink_edge.mean()) * res_mm if len(to_ink_edge) else 0.0,
         edge_max_mm=float(to_ink_edge.max()) * res_mm if len(to_ink_edge) else 0.0,
         res_mm=float(res_mm),
+        line_width=lines,
     )
 
 
@@ -216,7 +269,8 @@ class PlannedInk:
 
 
 def planned_ink(mask: InkMask, uvz_mm: Array, stroke: NDArray[np.integer],
-                stroke_fill: NDArray[np.bool_], needle_mm: float, res_mm: float) -> PlannedInk:
+                stroke_fill: NDArray[np.bool_], needle_mm: float, res_mm: float,
+                stroke_width_mm: NDArray[np.float64] | None = None) -> PlannedInk:
     """The ink a planned path draws, against the artwork (the mask), on a ``res_mm`` grid
     over the mask.
 
@@ -227,6 +281,8 @@ def planned_ink(mask: InkMask, uvz_mm: Array, stroke: NDArray[np.integer],
         stroke_fill: (strokes,) whether each drawn stroke (in drawing order) is fill.
         needle_mm: the needle's line width.
         res_mm: the grid's pixel (finer than the mask's).
+        stroke_width_mm: (strokes,) the designed width of each drawn stroke that is a
+            line along a centreline (NaN for the others), for the line width.
     """
     corners = np.array([[mask.xs[0], mask.ys[0]], [mask.xs[-1], mask.ys[-1]]])
     grid = grid_over([corners, uvz_mm[uvz_mm[:, 2] < 0.0]], res_mm)
@@ -239,7 +295,20 @@ def planned_ink(mask: InkMask, uvz_mm: Array, stroke: NDArray[np.integer],
                           needle_mm)
     ink = outlines | fill
     art = artwork_on(mask, grid)
-    return PlannedInk(art, ink, artwork_fidelity(art, ink, res_mm, outlines, fill))
+    lines = None
+    if stroke_width_mm is not None:
+        lines = line_width(ink, grid, *line_runs(uvz_mm, stroke, stroke_width_mm))
+    return PlannedInk(art, ink, artwork_fidelity(art, ink, res_mm, outlines, fill, lines))
+
+
+def line_runs(uvz_mm: Array, stroke: NDArray[np.integer], stroke_width_mm: NDArray[np.float64]
+              ) -> tuple[list[Array], list[float]]:
+    """The marking runs of the strokes that are lines (a designed width, not NaN) and
+    their designed widths."""
+    starts, stops = _run_bounds(uvz_mm, stroke)
+    width = np.asarray(stroke_width_mm, dtype=np.float64)[stroke[starts]]
+    keep = np.flatnonzero(np.isfinite(width))
+    return ([uvz_mm[starts[i]:stops[i], :2] for i in keep], [float(width[i]) for i in keep])
 
 
 def fidelity_image(art: Mask, ink: Mask) -> NDArray[np.uint8]:

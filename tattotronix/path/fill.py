@@ -31,8 +31,10 @@ from numpy.typing import NDArray
 
 __all__ = ["FILL_STYLES", "MIN_RUN_PX", "Hatch", "fill_regions", "hatch", "hatch_at"]
 
-#: the fill styles (``toolpath.fill_style``): one hatch, or a cross-hatch of two
-FILL_STYLES = ("hatch", "cross")
+#: the fill styles (``toolpath.fill_style``) made of hatch runs: one hatch, a cross-hatch
+#: of two, a hatch at the needle's width (solid); ``concentric`` rings are traced in
+#: :mod:`tattotronix.path.inset`
+FILL_STYLES = ("hatch", "cross", "solid")
 
 MIN_RUN_PX = 2  # shortest run of ink pixels that yields a hatch segment
 INSET_PX = 1  # pull each end of a run of 4 px or more in by this many pixels
@@ -164,15 +166,18 @@ def fill_regions(
     pitch_mm: float,
     angle_deg: float = 0.0,
     style: str = "hatch",
+    inset_px: int = INSET_PX,
 ) -> Hatch:
-    """The fill of every region: a hatch at ``angle_deg``, or a cross-hatch (``style``
-    ``cross``: a second pass at ``angle_deg + 90``, after the first in each region)."""
-    first = hatch_at(labels, xs, ys, res_mm, pitch_mm, angle_deg)
-    if style == "hatch":
-        return first
-    if style != "cross":
+    """The fill of every region: a hatch at ``angle_deg`` (``style`` ``hatch``, or
+    ``solid``, for which the caller passes the needle's width as ``pitch_mm``), or a
+    cross-hatch (``cross``: a second pass at ``angle_deg + 90``, after the first in each
+    region)."""
+    if style not in FILL_STYLES:
         raise ValueError(f"fill style {style!r}: use one of {', '.join(FILL_STYLES)}")
-    second = hatch_at(labels, xs, ys, res_mm, pitch_mm, angle_deg + 90.0)
+    first = hatch_at(labels, xs, ys, res_mm, pitch_mm, angle_deg, inset_px)
+    if style != "cross":
+        return first
+    second = hatch_at(labels, xs, ys, res_mm, pitch_mm, angle_deg + 90.0, inset_px)
     offset = int(first.line.max()) + 1 if len(first.line) else 0
     label = np.concatenate([first.label, second.label])
     order = np.argsort(label, kind="stable")  # each region: its first pass, then its second

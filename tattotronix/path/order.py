@@ -36,7 +36,7 @@ from tattotronix.path.costs import TransitionCosts, can_drag
 from tattotronix.path.laps import Laps
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.polyline import oriented, resample_many
-from tattotronix.path.strokes import Drawing, StrokeKind
+from tattotronix.path.strokes import Drawing
 
 __all__ = ["Order", "OrderResult", "optimise_order", "original_order"]
 
@@ -166,7 +166,7 @@ class _Precedence:
 
     def __init__(self, drawing: Drawing, enabled: bool):
         self.enabled = enabled
-        self.outline = drawing.kinds != StrokeKind.FILL
+        self.outline = ~drawing.is_fill
         self.region = drawing.region_of
         self.regions = int(self.region.max()) + 1 if len(self.region) else 0
 
@@ -471,7 +471,7 @@ def optimise_order(
     kept = cost >= original_cost
     if kept:
         ours, cost = original, original_cost
-    open_rev = int((ours.reverse & (drawing.kinds[ours.sequence] == StrokeKind.FILL)).sum())
+    open_rev = int((ours.reverse & ~drawing.closed[ours.sequence]).sum())
     laps.lap("ordering")
     return OrderResult(ours, cost, greedy_cost, original_cost, passes, moves, open_rev, kept,
                        time.perf_counter() - t0)

@@ -23,7 +23,13 @@ class ToolpathParams:
 
     Attributes:
         pitch_mm: hatch spacing (distance between fill scanlines), mm.
-        fill_style: ``hatch`` or ``cross`` (a second hatch at 90 degrees).
+        needle_width_mm: the needle's ink line width, mm.
+        compensate: run outlines and fill half a needle width inside the artwork's edge,
+            and draw parts narrower than ``line_max_mm`` along their centreline
+            (:mod:`tattotronix.path.inset`); False: the original's strokes.
+        line_max_mm: parts narrower than this are line art (0: none), mm.
+        fill_style: ``hatch``, ``cross`` (a second hatch at 90 degrees), ``concentric``
+            (rings parallel to the outline) or ``solid`` (a hatch at the needle's width).
         fill_angle_deg: the hatch's angle from the x axis, degrees (anticlockwise).
         step_mm: arc-length resampling step along strokes, mm.
         clearance_mm: needle height above the panel surface for travel, mm.
@@ -54,6 +60,9 @@ class ToolpathParams:
     panel_origin_m: tuple[float, float, float]
     fill_style: str = "hatch"
     fill_angle_deg: float = 0.0
+    needle_width_mm: float = 0.3
+    compensate: bool = True
+    line_max_mm: float = 0.6
 
     def __post_init__(self) -> None:
         positive = {
@@ -61,6 +70,7 @@ class ToolpathParams:
             "toolpath.step_mm": (self.step_mm, "the resampling step, e.g. 0.15"),
             "toolpath.feed_mark_mm_s": (self.feed_mark_mm_s, "the marking feed, e.g. 6"),
             "toolpath.feed_travel_mm_s": (self.feed_travel_mm_s, "the travel feed, e.g. 60"),
+            "toolpath.needle_width_mm": (self.needle_width_mm, "the ink line width, e.g. 0.3"),
         }
         for key, (value, hint) in positive.items():
             if not (math.isfinite(value) and value > 0):
@@ -71,6 +81,7 @@ class ToolpathParams:
             "toolpath.approach_mm": self.approach_mm,
             "toolpath.lift_s": self.lift_s,
             "mask.min_region_mm2": self.min_region_mm2,
+            "toolpath.line_max_mm": self.line_max_mm,
         }.items():
             if not (math.isfinite(value) and value >= 0):
                 raise TattotronixError(f"{key} must be >= 0 and finite (got {value})")
@@ -80,6 +91,10 @@ class ToolpathParams:
                 f"(clearance_mm + plunge_mm = {self.clearance_mm + self.plunge_mm}): "
                 "lower approach_mm or raise clearance_mm"
             )
+        if self.fill_style == "concentric" and not self.compensate:
+            raise TattotronixError(
+                "toolpath.fill_style=concentric traces rings inside the compensated outline: "
+                "set toolpath.compensate=true, or choose fill_style hatch, cross or solid")
         if self.min_loop_px < 1:
             raise TattotronixError(f"toolpath.min_loop_px must be >= 1 (got {self.min_loop_px})")
         if min(self.panel_size_mm) <= 0:
@@ -115,7 +130,15 @@ class ToolpathParams:
             ),
             fill_style=toolpath.fill_style.name,
             fill_angle_deg=float(toolpath.fill_angle_deg),
+            needle_width_mm=float(toolpath.needle_width_mm),
+            compensate=bool(toolpath.compensate),
+            line_max_mm=float(toolpath.line_max_mm),
         )
+
+    @property
+    def fill_pitch_mm(self) -> float:
+        """The fill's spacing: the needle's width for ``solid``, else ``pitch_mm``."""
+        return self.needle_width_mm if self.fill_style == "solid" else self.pitch_mm
 
     @property
     def mark_z_mm(self) -> float:

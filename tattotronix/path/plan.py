@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.art.grid import InkMask
+from tattotronix.art.vector import VectorLines
 from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.path.fill import MIN_RUN_PX, fill_regions
@@ -32,7 +33,7 @@ from tattotronix.path.params import ToolpathParams
 from tattotronix.path.path3d import Path3D, build_path_flat
 from tattotronix.path.polyline import resample_many
 from tattotronix.path.regions import find_regions
-from tattotronix.path.strokes import Drawing, assemble_drawing
+from tattotronix.path.strokes import Drawing, assemble_drawing, compensated_drawing
 from tattotronix.path.timing import PathMetrics, measure, segment_lengths, timestamps
 
 __all__ = ["MAX_FILL_CELLS", "MAX_POINTS", "MAX_STROKES", "Toolpath", "check_fill_budget",
@@ -69,7 +70,7 @@ def check_fill_budget(mask: InkMask, params: ToolpathParams) -> None:
         TattotronixError: over budget; the message gives the estimate and what to raise.
     """
     h, w = mask.ink.shape
-    res, pitch = mask.res_mm, params.pitch_mm
+    res, pitch = mask.res_mm, params.fill_pitch_mm
     span = (h - 1) * res / pitch
     lines = math.floor(span + 1e-9) + 1 if math.isfinite(span) else math.inf
     cells = lines * w
@@ -200,14 +201,15 @@ class Toolpath:
         }
 
 
-def plan_toolpath(mask: InkMask, params: ToolpathParams, max_passes: int = MAX_PASSES
-                  ) -> Toolpath:
+def plan_toolpath(mask: InkMask, params: ToolpathParams, max_passes: int = MAX_PASSES,
+                  vector: VectorLines | None = None) -> Toolpath:
     """Plan the needle path for an ink mask.
 
     Args:
         mask: the ink mask.
         params: the toolpath parameters.
         max_passes: the ordering search's budget of 2-opt passes (work, not time).
+        vector: the artwork's own lines (``artwork.vector``; used when compensating).
 
     Returns:
         The toolpath, with the original ordering's figures beside ours.
@@ -224,11 +226,15 @@ def plan_toolpath(mask: InkMask, params: ToolpathParams, max_passes: int = MAX_P
         mask.ink, mask.res_mm, params.min_region_mm2, params.min_loop_px
     )
     laps.lap("regions")
-    fill = fill_regions(labels, mask.xs, mask.ys, mask.res_mm, params.pitch_mm,
-                        params.fill_angle_deg, params.fill_style)
-    laps.lap("fill")
-    drawing = assemble_drawing(mask, regions, fill)
-    laps.lap("regions")
+    if params.compensate:
+        drawing = compensated_drawing(mask, labels, regions, params, vector)
+        laps.lap("fill")
+    else:
+        fill = fill_regions(labels, mask.xs, mask.ys, mask.res_mm, params.fill_pitch_mm,
+                            params.fill_angle_deg, params.fill_style)
+        laps.lap("fill")
+        drawing = assemble_drawing(mask, regions, fill)
+        laps.lap("regions")
     if not drawing.strokes:
         raise TattotronixError(
             f"the mask has no ink region of at least {params.min_region_mm2} mm^2 "
@@ -237,16 +243,17 @@ def plan_toolpath(mask: InkMask, params: ToolpathParams, max_passes: int = MAX_P
     check_order_budget(len(drawing.strokes), params)
     check_points_budget(drawing, params)
     laps.lap("checks")
-    result = optimise_order(drawing, mask, params, max_passes=max_passes, laps=laps)
+    on_ink = drawing.drag_mask if drawing.drag_mask is not None else mask
+    result = optimise_order(drawing, on_ink, params, max_passes=max_passes, laps=laps)
     laps.skip()
     # every stroke resampled once as drawn in the original's order; ours reuses the strokes
     # it draws the same way
     canonical = resample_many(drawing.vertices, drawing.bounds, params.step_mm)
     pts, bounds = result.order.resampled(drawing, params.step_mm, canonical)
     laps.lap("resample")
-    path = build_path_flat(pts, bounds, mask, params)
+    path = build_path_flat(pts, bounds, on_ink, params)
     laps.lap("path")
-    baseline = build_path_flat(*canonical, mask, params, math.inf)
+    baseline = build_path_flat(*canonical, on_ink, params, math.inf)
     orig = measure(baseline, params)
     laps.lap("original")
     seg = segment_lengths(path.uvz_mm)

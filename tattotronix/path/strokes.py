@@ -15,7 +15,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.art.grid import InkMask
+from tattotronix.art.vector import VectorLines
 from tattotronix.path.fill import Hatch, fill_regions
+from tattotronix.path.inset import compensate, concentric_rings
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.polyline import (
     _EPS_MM,
@@ -26,15 +28,24 @@ from tattotronix.path.polyline import (
 )
 from tattotronix.path.regions import Region, find_regions
 
-__all__ = ["Drawing", "Stroke", "StrokeKind", "assemble_drawing", "build_drawing"]
+__all__ = ["FILL_KINDS", "Drawing", "Stroke", "StrokeKind", "assemble_drawing", "build_drawing",
+           "compensated_drawing"]
 
 
 class StrokeKind(IntEnum):
-    """What a stroke draws."""
+    """What a stroke draws: an outline (outer or hole; closed), a fill row (open), a line
+    (the centreline of line art; open, or closed for a ring of line art) or a ring of a
+    concentric fill (closed)."""
 
     OUTER = 0
     HOLE = 1
     FILL = 2
+    LINE = 3
+    RING = 4
+
+
+#: kinds that fill a region (after its outlines and lines when ``outlines_first``)
+FILL_KINDS = (StrokeKind.FILL, StrokeKind.RING)
 
 
 @dataclass(frozen=True)
@@ -45,21 +56,27 @@ class Stroke:
         kind: outer outline, hole outline or fill row.
         region: index of its region in the original (left-to-right) order.
         path_mm: (n, 2) vertices, mm; an outline repeats its first vertex at the end.
+        width_mm: a line's designed width (the artwork's, along its centreline), mm; NaN
+            for the other kinds.
     """
 
     kind: StrokeKind
     region: int
     path_mm: NDArray[np.float64]
+    width_mm: float = float("nan")
 
     @property
     def closed(self) -> bool:
-        """Outlines are closed loops (they may start at any vertex)."""
+        """Outlines, rings and closed lines are loops (they may start at any vertex)."""
+        if self.kind == StrokeKind.LINE:
+            return len(self.path_mm) > 3 and bool(np.array_equal(self.path_mm[0],
+                                                                  self.path_mm[-1]))
         return self.kind != StrokeKind.FILL
 
     @property
     def is_outline(self) -> bool:
-        """Outer or hole outline."""
-        return self.kind != StrokeKind.FILL
+        """Outer or hole outline, or a line: drawn before the fill."""
+        return self.kind not in FILL_KINDS
 
     def points(self, step_mm: float, seam: int = 0, reverse: bool = False) -> NDArray[np.float64]:
         """The stroke resampled at ``step_mm``, from vertex ``seam`` (loops), maybe reversed.
@@ -85,12 +102,15 @@ class Drawing:
         regions: kept ink regions.
         holes: traced holes (counters) in the kept regions.
         dropped_loops: loops dropped for being shorter than ``min_loop_px``.
+        drag_mask: where the needle may drag across a gap (a line inside it keeps the ink
+            inside the artwork); None: the mask itself, as the original.
     """
 
     strokes: tuple[Stroke, ...]
     regions: int
     holes: int
     dropped_loops: int
+    drag_mask: InkMask | None = None
 
     @cached_property
     def kinds(self) -> NDArray[np.int8]:
@@ -104,8 +124,18 @@ class Drawing:
 
     @cached_property
     def closed(self) -> NDArray[np.bool_]:
-        """(n,) whether each stroke is a closed loop (an outline)."""
-        return self.kinds != StrokeKind.FILL
+        """(n,) whether each stroke is a closed loop (see :attr:`Stroke.closed`)."""
+        return np.array([s.closed for s in self.strokes], dtype=bool)
+
+    @cached_property
+    def width_mm(self) -> NDArray[np.float64]:
+        """(n,) each line's designed width, mm (NaN for the other kinds)."""
+        return np.array([s.width_mm for s in self.strokes], dtype=np.float64)
+
+    @cached_property
+    def is_fill(self) -> NDArray[np.bool_]:
+        """(n,) whether each stroke fills (a fill row or a concentric ring)."""
+        return np.isin(self.kinds, FILL_KINDS)
 
     @cached_property
     def vertices(self) -> NDArray[np.float64]:
@@ -167,7 +197,7 @@ def build_drawing(mask: InkMask, params: ToolpathParams) -> Drawing:
     labels, regions = find_regions(
         mask.ink, mask.res_mm, params.min_region_mm2, params.min_loop_px
     )
-    fill = fill_regions(labels, mask.xs, mask.ys, mask.res_mm, params.pitch_mm,
+    fill = fill_regions(labels, mask.xs, mask.ys, mask.res_mm, params.fill_pitch_mm,
                         params.fill_angle_deg, params.fill_style)
     return assemble_drawing(mask, regions, fill)
 
@@ -203,4 +233,48 @@ def assemble_drawing(mask: InkMask, regions: list[Region], fill: Hatch) -> Drawi
         regions=len(regions),
         holes=sum(r.hole_count for r in regions),
         dropped_loops=sum(r.dropped_loops for r in regions),
+    )
+
+
+def compensated_drawing(mask: InkMask, labels: NDArray[np.int32], regions: list[Region],
+                        params: ToolpathParams, vector: VectorLines | None = None) -> Drawing:
+    """The strokes of the regions for a needle of finite width (:mod:`tattotronix.path.inset`):
+    per region its inset's outer and hole outlines, its centreline strokes, then its fill
+    inside the inset (hatch runs, or concentric rings); regions in the original's order.
+
+    Args:
+        mask: the ink mask.
+        labels: the region labels (:func:`find_regions`).
+        regions: the kept regions, in the original's order.
+        params: the toolpath parameters (needle width, line threshold, fill).
+        vector: the artwork's own lines (``artwork.vector``), if any.
+    """
+    comp = compensate(labels, mask, params.needle_width_mm, params.line_max_mm,
+                      params.min_loop_px, vector)
+    grid = comp.grid
+    rings: dict[int, list[NDArray[np.float64]]] = {}
+    fill = Hatch(np.zeros(0, np.int32), np.zeros(0, np.intp), np.zeros((0, 2)), np.zeros((0, 2)))
+    if params.fill_style == "concentric":
+        rings = concentric_rings(comp, params.pitch_mm, params.min_loop_px)
+    else:
+        fill = fill_regions(comp.inset, grid.xs, grid.ys, grid.res_mm, params.fill_pitch_mm,
+                            params.fill_angle_deg, params.fill_style, inset_px=0)
+    fill_ab = np.stack([fill.a_mm, fill.b_mm], axis=1)
+    strokes: list[Stroke] = []
+    for i, region in enumerate(regions):
+        outers, holes = comp.loops.get(region.label, ([], []))
+        strokes.extend(Stroke(StrokeKind.OUTER, i, lp) for lp in outers)
+        strokes.extend(Stroke(StrokeKind.HOLE, i, lp) for lp in holes)
+        strokes.extend(Stroke(StrokeKind.LINE, i, ln, float(np.median(w))) for ln, w in zip(
+            comp.lines.get(region.label, []), comp.line_width_mm.get(region.label, []),
+            strict=True))
+        strokes.extend(Stroke(StrokeKind.RING, i, lp) for lp in rings.get(region.label, []))
+        lo, hi = np.searchsorted(fill.label, [region.label, region.label + 1])
+        strokes.extend(Stroke(StrokeKind.FILL, i, fill_ab[j]) for j in range(lo, hi))
+    return Drawing(
+        strokes=tuple(strokes),
+        regions=len(regions),
+        holes=sum(r.hole_count for r in regions),
+        dropped_loops=sum(r.dropped_loops for r in regions),
+        drag_mask=comp.safe,
     )

@@ -1045,7 +1045,7 @@ def draw_figures(cfg: Config, out: Outputs, name: str) -> dict[str, Path]:
     t0 = time.perf_counter()
     target = fig_dir / "tracking.png"
     tracking_figure(run.t, run.error_m, run.down, run.settled,
-                    out.tmp_path(target), name, needle_um=cfg.draw.needle_um)
+                    out.tmp_path(target), name, needle_um=cfg.toolpath.needle_um)
     written["tracking"] = target
     times["tracking"] = time.perf_counter() - t0
     log.info("figures %s: %s", name, ", ".join(f"{k} {v:.2f} s" for k, v in times.items()))

@@ -428,7 +428,7 @@ class ActuatorStudy:
         lever_z: (N, n) depth lever per pose and joint, ``|J_z,i|``, mm/deg.
         play_lateral_mm: (N,) worst lateral error with ``play_deg`` at every joint, mm.
         options: the options' results, in the config's order.
-        line_mm: the ink line width, mm (``draw.needle_mm``).
+        line_mm: the ink line width, mm (``toolpath.needle_width_mm``).
         plunge_mm: the marking depth, mm (``toolpath.plunge_mm``).
         play_deg: the play at every joint of the "play" figure, deg.
         backlash_deg: the backlash whose cost is reported, deg.
@@ -543,7 +543,8 @@ def actuator_study(
         raise TattotronixError(
             f"the trajectory's joints {list(traj.joints)} are not the arm's "
             f"{list(decl.joints)}: re-run the 'ik' and 'trajectory' stages")
-    for key, value in (("draw.needle_mm", line_mm), ("study.actuator.play_deg", play_deg)):
+    for key, value in (("toolpath.needle_width_mm", line_mm),
+                       ("study.actuator.play_deg", play_deg)):
         if not (math.isfinite(value) and value > 0):
             raise TattotronixError(f"{key} must be a positive number, got {value!r}")
     if int(series_every) != series_every or series_every < 1:
@@ -590,7 +591,7 @@ def study_from_config(cfg: Config, chain: Chain, traj: StoredTrajectory,
     decl = declared(sc, cfg.robot, hz, chain.joint_names)
     return actuator_study(
         chain, traj, decl, sc.options, every=int(sc.every),
-        line_mm=float(cfg.draw.needle_mm), plunge_mm=float(cfg.toolpath.plunge_mm),
+        line_mm=float(cfg.toolpath.needle_width_mm), plunge_mm=float(cfg.toolpath.plunge_mm),
         play_deg=float(sc.play_deg), backlash_deg=float(sc.backlash_deg))
 
 

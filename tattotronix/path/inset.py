@@ -1,0 +1,317 @@
+"""Needle-width compensation and line art, on a grid finer than the mask.
+
+The needle inks a band ``needle_width_mm`` wide around its path. To keep the ink's edge on
+the artwork's edge, the path runs half a needle width inside it; parts of the artwork too
+narrow for that are drawn as one pass along their centreline (docs/toolpath.md, "Needle
+width"). All of it is read off distance fields on a grid ``refine`` times finer than the
+mask (about a sixth of the needle width per pixel; the artwork on it is the mask, each
+fine pixel taking the mask pixel it falls in, as :mod:`tattotronix.path.fidelity` reads
+it):
+
+* ``d``: every artwork pixel's distance to the artwork's edge (OpenCV's exact Euclidean
+  distance transform, less half a pixel: the edge lies between pixel centres).
+* **core**: where ``d >= line_max / 2``: the centres of discs as wide as the line
+  threshold that fit in the artwork.
+* **thick part** (the morphological opening): within ``line_max / 2`` of the core. The
+  rest of the artwork, narrower than ``line_max`` everywhere, is **line art**.
+* **inset**: within ``line_max / 2 - needle / 2`` of the core (and ``d >= needle / 2``):
+  a disc of the needle's width centred anywhere in it stays inside the artwork. Its
+  boundary loops are the outlines, and the fill (hatch, cross-hatch, concentric or solid)
+  runs inside it, so a hatch run stops half a needle width short of the artwork's edge.
+* **centrelines**: each piece of line art longer than ``line_max`` is skeletonised
+  (scikit-image's ``skeletonize`` on the whole artwork around it, so the centreline runs
+  on through junctions) and the skeleton inside the piece drawn in the fewest strokes
+  (:mod:`tattotronix.path.centreline`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from tattotronix.art.grid import InkMask
+from tattotronix.art.vector import VectorLines
+from tattotronix.errors import TattotronixError
+from tattotronix.path.centreline import skeleton_strokes
+
+__all__ = ["MAX_FINE_PIXELS", "Compensated", "FineGrid", "compensate", "concentric_rings",
+           "pixel_width", "refine_factor"]
+
+#: the finest grid worked on: a fine pixel is at most a sixth of the needle width
+FINE_PER_NEEDLE = 6
+#: most fine pixels (~13 bytes each in distance fields and labels)
+MAX_FINE_PIXELS = 80_000_000
+
+Loop = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class FineGrid:
+    """The fine grid: pixel ``(row, col)`` has its centre at ``(xs[col], ys[row])`` mm.
+
+    Attributes:
+        xs: (W,) column x, mm (increasing). ys: (H,) row y, mm (decreasing).
+        res_mm: the pixel, mm. factor: fine pixels per mask pixel (each way).
+    """
+
+    xs: NDArray[np.float64]
+    ys: NDArray[np.float64]
+    res_mm: float
+    factor: int
+
+    def to_mm(self, px: NDArray[np.integer] | NDArray[np.floating]) -> Loop:
+        """(n, 2) (row, col) pixel coordinates -> (n, 2) (x, y) mm."""
+        p = np.asarray(px, dtype=np.float64)
+        return np.column_stack([self.xs[0] + p[:, 1] * self.res_mm,
+                                self.ys[0] - p[:, 0] * self.res_mm])
+
+
+@dataclass(frozen=True)
+class Compensated:
+    """The artwork split for a needle of finite width, on the fine grid.
+
+    Attributes:
+        grid: the fine grid.
+        inset: (H, W) int32 region label of every fine pixel of the inset (0 elsewhere).
+        loops: per region label, its inset's boundary loops: (outer loops, hole loops),
+            each (n, 2) mm, closed (first vertex repeated).
+        lines: per region label, its centreline strokes, each (n, 2) mm (a closed one
+            repeats its first vertex).
+        line_width_mm: per region label, per centreline stroke, the artwork's width along
+            it (twice the distance to the edge; (n,) mm).
+        safe: where a needle dot fits inside the artwork (the artwork eroded by half the
+            needle width), on the fine grid: the needle may drag across a gap only along
+            a line inside it.
+    """
+
+    grid: FineGrid
+    safe: InkMask
+    inset: NDArray[np.int32]
+    loops: dict[int, tuple[list[Loop], list[Loop]]]
+    lines: dict[int, list[Loop]]
+    line_width_mm: dict[int, list[NDArray[np.float64]]]
+
+
+def refine_factor(res_mm: float, needle_mm: float) -> int:
+    """Fine pixels per mask pixel: at most ``needle / FINE_PER_NEEDLE`` each (>= 1)."""
+    return max(1, math.ceil(res_mm / (needle_mm / FINE_PER_NEEDLE) - 1e-9))
+
+
+def _refine(labels: NDArray[np.int32], mask: InkMask, factor: int
+            ) -> tuple[NDArray[np.int32], FineGrid]:
+    """The label image on the fine grid (each fine pixel takes its mask pixel's label),
+    padded by one mask pixel of background so the artwork's edge is never the grid's."""
+    h, w = labels.shape
+    cells = (h + 2) * (w + 2) * factor * factor
+    if cells > MAX_FINE_PIXELS:
+        raise TattotronixError(
+            f"needle-width compensation works on a grid {factor}x finer than the mask: "
+            f"{cells:.3g} pixels, over its budget of {MAX_FINE_PIXELS:.3g}; raise "
+            "mask.res_mm or toolpath.needle_width_mm, or set toolpath.compensate=false")
+    fine = np.repeat(np.repeat(np.pad(labels, 1), factor, axis=0), factor, axis=1)
+    res = mask.res_mm / factor
+    x0 = mask.xs[0] - mask.res_mm - mask.res_mm / 2 + res / 2
+    y0 = mask.ys[0] + mask.res_mm + mask.res_mm / 2 - res / 2
+    grid = FineGrid(x0 + np.arange(fine.shape[1]) * res, y0 - np.arange(fine.shape[0]) * res,
+                    res, factor)
+    return fine.astype(np.int32), grid
+
+
+def _distance(inside: NDArray[np.bool_]) -> NDArray[np.float32]:
+    """Each pixel's distance to the nearest pixel outside ``inside`` (px; 0 outside)."""
+    return np.asarray(cv2.distanceTransform(inside.astype(np.uint8), cv2.DIST_L2,
+                                            cv2.DIST_MASK_PRECISE), dtype=np.float32)
+
+
+def _smoothed(art: NDArray[np.bool_], factor: int) -> NDArray[np.bool_]:
+    """The artwork blurred by half a mask pixel (Gaussian) and cut at half: its edges
+    run through the middle of the mask's pixel steps."""
+    if factor <= 1:
+        return art
+    sigma = factor / 2
+    blur = cv2.GaussianBlur(art.astype(np.float32), (0, 0), sigmaX=sigma, sigmaY=sigma)
+    return np.asarray(blur > 0.5)
+
+
+def _loops(region: NDArray[np.bool_], grid: FineGrid, offset: tuple[int, int],
+           min_px: int) -> tuple[list[Loop], list[Loop]]:
+    """Outer and hole boundary loops of a (cropped) binary image, closed, in mm; loops of
+    fewer than ``min_px`` pixels are dropped."""
+    contours, hierarchy = cv2.findContours(region.astype(np.uint8), cv2.RETR_CCOMP,
+                                           cv2.CHAIN_APPROX_NONE)
+    outers: list[Loop] = []
+    holes: list[Loop] = []
+    if not contours:
+        return outers, holes
+    for c, parent in zip(contours, hierarchy[0, :, 3], strict=True):
+        if len(c) < min_px:
+            continue
+        rc = c[:, 0, ::-1] + np.array(offset)
+        simple = cv2.approxPolyDP(rc[:, ::-1].astype(np.int32).reshape(-1, 1, 2), 0.5, True)
+        pts = simple[:, 0, ::-1] if len(simple) >= 3 else rc
+        mm = grid.to_mm(np.vstack([pts, pts[:1]]))
+        (outers if parent < 0 else holes).append(mm)
+    return outers, holes
+
+
+def compensate(labels: NDArray[np.int32], mask: InkMask, needle_mm: float, line_max_mm: float,
+               min_loop_px: int, vector: VectorLines | None = None) -> Compensated:
+    """Split every labelled region into its inset (outlines and fill) and its line art.
+
+    Args:
+        labels: (H, W) region labels on the mask grid (0 background).
+        mask: the mask (its grid).
+        needle_mm: the needle's line width, mm (> 0).
+        line_max_mm: parts narrower than this are drawn along their centreline; 0: none
+            (a part too narrow to inset is then not drawn).
+        min_loop_px: loops shorter than this many mask pixels are dropped.
+        vector: lines taken from the artwork's geometry (``artwork.vector``): those
+            narrower than ``line_max_mm`` are drawn as they are, and the line art under
+            them is not skeletonised.
+
+    Returns:
+        The inset, its loops and the centrelines (see :class:`Compensated`).
+    """
+    factor = refine_factor(mask.res_mm, needle_mm)
+    fine, grid = _refine(labels, mask, factor)
+    art = fine > 0
+    depth = _distance(art) - 0.5  # px from the artwork's edge
+    # widths are read on the artwork without the mask's pixel steps (a diagonal 0.8 mm
+    # line is 0.6 to 0.75 mm wide across its steps): blurred by half a mask pixel
+    smooth = _smoothed(art, factor)
+    sdepth = _distance(smooth) - 0.5
+    r_px = needle_mm / 2 / grid.res_mm
+    half_px = max(line_max_mm / 2 / grid.res_mm, r_px)
+    core = sdepth >= half_px
+    to_core = _distance(~core) if core.any() else np.full(art.shape, np.inf, np.float32)
+    inset = (to_core <= half_px - r_px) & (depth >= r_px) & art
+    inset_labels = np.where(inset, fine, 0).astype(np.int32)
+
+    loops: dict[int, tuple[list[Loop], list[Loop]]] = {}
+    n, comp, stats, _ = cv2.connectedComponentsWithStats(inset.astype(np.uint8), connectivity=8)
+    for k in range(1, n):
+        x, y, w, h = stats[k, :4]
+        crop = comp[y:y + h, x:x + w] == k
+        lab = int(np.bincount(fine[y:y + h, x:x + w][crop]).argmax())
+        outers, holes = _loops(crop, grid, (int(y), int(x)), min_loop_px * factor)
+        have = loops.setdefault(lab, ([], []))
+        have[0].extend(outers)
+        have[1].extend(holes)
+
+    lines: dict[int, list[Loop]] = {}
+    widths: dict[int, list[NDArray[np.float64]]] = {}
+    if line_max_mm > 0:
+        thin = smooth & ~(to_core <= half_px)
+        if vector is not None:
+            thin &= ~_vector_lines(vector, fine, grid, line_max_mm, lines, widths)
+        _centrelines(thin, smooth, fine, depth, grid, line_max_mm, lines, widths)
+    safe = InkMask(depth >= r_px, grid.res_mm, grid.xs, grid.ys)
+    return Compensated(grid, safe, inset_labels, loops, lines, widths)
+
+
+def _centrelines(thin: NDArray[np.bool_], art: NDArray[np.bool_], fine: NDArray[np.int32],
+                 depth: NDArray[np.float32], grid: FineGrid, line_max_mm: float,
+                 lines: dict[int, list[Loop]], widths: dict[int, list[NDArray[np.float64]]]
+                 ) -> None:
+    """Centreline strokes of each piece of line art at least ``line_max_mm`` long (its
+    area at least ``line_max_mm`` squared), added to ``lines`` and ``widths``."""
+    from skimage.morphology import skeletonize
+
+    line_px = line_max_mm / grid.res_mm
+    n, comp, stats, _ = cv2.connectedComponentsWithStats(thin.astype(np.uint8), connectivity=8)
+    margin = int(math.ceil(line_px)) + 1
+    hh, ww = art.shape
+    for k in range(1, n):
+        if stats[k, cv2.CC_STAT_AREA] < line_px * line_px:
+            continue  # a corner of a wider part, or a speck
+        x, y, w, h = stats[k, :4]
+        r0, r1 = max(0, y - margin), min(hh, y + h + margin)
+        c0, c1 = max(0, x - margin), min(ww, x + w + margin)
+        skel = skeletonize(art[r0:r1, c0:c1]) & (comp[r0:r1, c0:c1] == k)
+        lab = int(np.bincount(fine[y:y + h, x:x + w][comp[y:y + h, x:x + w] == k]).argmax())
+        for stroke in skeleton_strokes(skel, prune_px=line_px / 2):
+            rc = stroke + np.array([r0, c0])
+            if len(rc) < 2:
+                continue
+            lines.setdefault(lab, []).append(_smooth_open(grid.to_mm(rc)))
+            width = pixel_width(depth[rc[:, 0], rc[:, 1]] + 0.5, grid.res_mm)
+            widths.setdefault(lab, []).append(width)
+
+
+def _vector_lines(vector: VectorLines, fine: NDArray[np.int32], grid: FineGrid,
+                  line_max_mm: float, lines: dict[int, list[Loop]],
+                  widths: dict[int, list[NDArray[np.float64]]]) -> NDArray[np.bool_]:
+    """Add the vector lines narrower than ``line_max_mm`` to ``lines`` (each in the region
+    it lies on most; none: not drawn, like a dropped region) and return the fine pixels
+    they cover (their width plus a mask pixel each side)."""
+    covered = np.zeros(fine.shape, np.uint8)
+    for path, width in zip(vector.paths, vector.widths_mm, strict=True):
+        if width >= line_max_mm or len(path) < 2:
+            continue
+        px = np.column_stack([(path[:, 0] - grid.xs[0]) / grid.res_mm,
+                              (grid.ys[0] - path[:, 1]) / grid.res_mm])
+        pts = np.rint(px * 16).astype(np.int32).reshape(-1, 1, 2)
+        band = np.zeros(fine.shape, np.uint8)
+        thick = max(1, int(round(width / grid.res_mm)) + 2 * grid.factor)
+        cv2.polylines(band, [pts], isClosed=False, color=1, thickness=thick, shift=4)
+        on = band.astype(bool)
+        counts = np.bincount(fine[on], minlength=1)
+        counts[0] = 0
+        covered |= band
+        if counts.max() == 0:
+            continue
+        lab = int(counts.argmax())
+        lines.setdefault(lab, []).append(path)
+        widths.setdefault(lab, []).append(np.full(len(path), float(width)))
+    return covered.astype(bool)
+
+
+def pixel_width(distance_px: NDArray[np.floating], res_mm: float) -> NDArray[np.float64]:
+    """The width of a band read at its centre from the distance transform (px to the
+    nearest pixel outside): ``2 d - 1/2`` px, within half a pixel for any band (an odd
+    width's centre pixel reads ``(w + 1) / 2``, an even width's ``w / 2``)."""
+    return (2.0 * np.asarray(distance_px, dtype=np.float64) - 0.5) * res_mm
+
+
+def _smooth_open(p: Loop, passes: int = 4) -> Loop:
+    """[1, 2, 1] / 4 passes along an open polyline (a closed one stays closed), its ends
+    kept: takes the pixel steps out of a skeleton's path."""
+    p = p.copy()
+    closed = len(p) > 3 and np.array_equal(p[0], p[-1])
+    for _ in range(passes):
+        if closed:
+            ring = p[:-1]
+            ring = 0.25 * np.roll(ring, 1, axis=0) + 0.5 * ring + 0.25 * np.roll(ring, -1, axis=0)
+            p = np.vstack([ring, ring[:1]])
+        elif len(p) > 2:
+            p[1:-1] = 0.25 * p[:-2] + 0.5 * p[1:-1] + 0.25 * p[2:]
+    return p
+
+
+def concentric_rings(comp: Compensated, pitch_mm: float, min_loop_px: int
+                     ) -> dict[int, list[Loop]]:
+    """A contour-parallel fill: per region label, the loops ``pitch_mm``, ``2 pitch_mm``,
+    ... inside its inset's boundary (outer and hole loops alike, outermost first)."""
+    grid = comp.grid
+    inside = comp.inset > 0
+    depth = _distance(inside)
+    pitch_px = pitch_mm / grid.res_mm
+    rings: dict[int, list[Loop]] = {}
+    k = 1
+    while True:
+        level = depth >= k * pitch_px + 0.5
+        if not level.any():
+            return rings
+        n, comp_k, stats, _ = cv2.connectedComponentsWithStats(level.astype(np.uint8),
+                                                                connectivity=8)
+        for j in range(1, n):
+            x, y, w, h = stats[j, :4]
+            crop = comp_k[y:y + h, x:x + w] == j
+            lab = int(np.bincount(comp.inset[y:y + h, x:x + w][crop]).argmax())
+            outers, holes = _loops(crop, grid, (int(y), int(x)), min_loop_px * grid.factor)
+            rings.setdefault(lab, []).extend(outers + holes)
+        k += 1
