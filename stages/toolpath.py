@@ -60,8 +60,8 @@ def main(cfg: Config, out: Outputs) -> None:
     )
     ink = planned_ink(mask, tp.path.uvz_mm, tp.path.stroke,
                       tp.drawing.is_fill[seq], float(cfg.toolpath.needle_width_mm),
-                      float(cfg.draw.ink_res_mm), tp.drawing.width_mm[seq])
-    save_png(fidelity_image(ink.art, ink.ink), float(cfg.draw.ink_res_mm),
+                      float(cfg.toolpath.ink_res_mm), tp.drawing.width_mm[seq])
+    save_png(fidelity_image(ink.art, ink.ink), float(cfg.toolpath.ink_res_mm),
              out.tmp_path(out.path("figures", name, "artwork_ink.png")))
     out.write_json(out.path("metrics", "toolpath", f"{name}.json"),
                    {"name": name, **tp.metrics_dict(), "artwork": ink.fidelity.metrics()})

@@ -476,9 +476,13 @@ class ToolpathConfig:
                               why="the hatch spacing")
     # the needle's ink line width: outlines run half of it inside the artwork's edge
     needle_width_mm: float = bounded(0.3, lo=0, lo_open=True, hi=10, unit="mm")
-    compensate: bool = True  # false: the original's outlines on the edge, no line art
+    compensate: bool = False  # true: compensate the needle width; narrow parts as line art
     # parts narrower than this are drawn as one pass along their centreline (0: none)
     line_max_mm: float = bounded(0.6, lo=0, hi=100, unit="mm")
+    # the raster the planned ink is measured on against the artwork (finer than the
+    # simulated ink's draw.ink_res_mm: the plan has no tracking error to blur it)
+    ink_res_mm: float = bounded(0.025, lo=MIN_INK_RES_MM, hi=10, unit="mm",
+                                why="the planned ink raster's pixel")
     fill_style: FillStyle = FillStyle.hatch
     fill_angle_deg: float = bounded(0.0, lo=-180, hi=180, unit="deg",
                                     why="the hatch's angle from the x axis")

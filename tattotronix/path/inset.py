@@ -43,6 +43,12 @@ __all__ = ["MAX_FINE_PIXELS", "Compensated", "FineGrid", "compensate", "concentr
 
 #: the finest grid worked on: a fine pixel is at most a sixth of the needle width
 FINE_PER_NEEDLE = 6
+#: the inset's extra margin (fine px) and its loops' smoothing passes and simplification
+#: tolerance (fine px): set so the smoothed loops keep the ink inside the mask's pixel
+#: steps (tests/test_inset.py) with no tight corner the time law must slow for
+INSET_MARGIN_PX = 1.0
+LOOP_SMOOTH_PASSES = 12
+LOOP_TOLERANCE_PX = 0.25
 #: most fine pixels (~13 bytes each in distance fields and labels)
 MAX_FINE_PIXELS = 80_000_000
 
@@ -150,9 +156,13 @@ def _loops(region: NDArray[np.bool_], grid: FineGrid, offset: tuple[int, int],
     for c, parent in zip(contours, hierarchy[0, :, 3], strict=True):
         if len(c) < min_px:
             continue
-        rc = c[:, 0, ::-1] + np.array(offset)
-        simple = cv2.approxPolyDP(rc[:, ::-1].astype(np.int32).reshape(-1, 1, 2), 0.5, True)
-        pts = simple[:, 0, ::-1] if len(simple) >= 3 else rc
+        rc = (c[:, 0, ::-1] + np.array(offset)).astype(np.float64)
+        if len(rc) >= 5:  # circular [1, 2, 1] / 4 passes: the pixel steps out
+            for _ in range(LOOP_SMOOTH_PASSES):
+                rc = 0.25 * np.roll(rc, 1, axis=0) + 0.5 * rc + 0.25 * np.roll(rc, -1, axis=0)
+        simple = cv2.approxPolyDP(rc[:, ::-1].astype(np.float32).reshape(-1, 1, 2),
+                                  LOOP_TOLERANCE_PX, True)
+        pts = simple[:, 0, ::-1].astype(np.float64) if len(simple) >= 3 else rc
         mm = grid.to_mm(np.vstack([pts, pts[:1]]))
         (outers if parent < 0 else holes).append(mm)
     return outers, holes
@@ -188,7 +198,7 @@ def compensate(labels: NDArray[np.int32], mask: InkMask, needle_mm: float, line_
     half_px = max(line_max_mm / 2 / grid.res_mm, r_px)
     core = sdepth >= half_px
     to_core = _distance(~core) if core.any() else np.full(art.shape, np.inf, np.float32)
-    inset = (to_core <= half_px - r_px) & (depth >= r_px) & art
+    inset = (to_core <= half_px - r_px - INSET_MARGIN_PX) & (sdepth >= r_px + INSET_MARGIN_PX)
     inset_labels = np.where(inset, fine, 0).astype(np.int32)
 
     loops: dict[int, tuple[list[Loop], list[Loop]]] = {}
@@ -294,8 +304,10 @@ def _smooth_open(p: Loop, passes: int = 4) -> Loop:
 
 def concentric_rings(comp: Compensated, pitch_mm: float, min_loop_px: int
                      ) -> dict[int, list[Loop]]:
-    """A contour-parallel fill: per region label, the loops ``pitch_mm``, ``2 pitch_mm``,
-    ... inside its inset's boundary (outer and hole loops alike, outermost first)."""
+    """A contour-parallel fill: per region label, the loops ``pitch_mm / 2``,
+    ``3 pitch_mm / 2``, ... inside its inset's boundary (outer and hole loops alike,
+    outermost first): the first ring half a pitch in, so a band narrower than two
+    pitches still gets one."""
     grid = comp.grid
     inside = comp.inset > 0
     depth = _distance(inside)
@@ -303,7 +315,7 @@ def concentric_rings(comp: Compensated, pitch_mm: float, min_loop_px: int
     rings: dict[int, list[Loop]] = {}
     k = 1
     while True:
-        level = depth >= k * pitch_px + 0.5
+        level = depth >= (k - 0.5) * pitch_px + 0.5
         if not level.any():
             return rings
         n, comp_k, stats, _ = cv2.connectedComponentsWithStats(level.astype(np.uint8),

@@ -61,7 +61,7 @@ class ToolpathParams:
     fill_style: str = "hatch"
     fill_angle_deg: float = 0.0
     needle_width_mm: float = 0.3
-    compensate: bool = True
+    compensate: bool = False
     line_max_mm: float = 0.6
 
     def __post_init__(self) -> None:
