@@ -9,8 +9,9 @@ over those runs of one step, all measured in the same runs:
 * ``mask``: threshold and drop small regions (:func:`~tattotronix.art.mask.make_mask`);
 * ``toolpath``: :func:`~tattotronix.path.plan.plan_toolpath`, and its sub-steps as it
   times them itself (:attr:`~tattotronix.path.plan.Toolpath.timings_s`): checks, regions
-  (labelling and tracing), fill, resampling, costs, ordering, the original's rule (its
-  3-D path and metrics), our path, metrics;
+  (labelling and tracing), fill (the strokes from the regions: outlines, fill, and with
+  compensation its distance fields and line art), resampling, costs, ordering, the
+  original's rule (its 3-D path and metrics), our path, metrics;
 * ``total``: the three above, with its ratio to the original's published 0.056 s.
 
 When the art library is missing, a synthetic mask of rings, bars and dots stands in for

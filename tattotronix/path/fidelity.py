@@ -22,7 +22,7 @@ artwork is the ink mask, each fine pixel taking the mask pixel it falls in. Repo
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import cv2
@@ -162,8 +162,7 @@ class LineWidth:
 
     def metrics(self) -> JsonDict:
         """JSON-ready."""
-        return {"lines": self.lines, "designed_mean_mm": self.designed_mean_mm,
-                "drawn_mean_mm": self.drawn_mean_mm, "worst_diff_mm": self.worst_diff_mm}
+        return asdict(self)
 
 
 def line_width(ink: Mask, grid: InkGrid, lines: Sequence[Array], designed_mm: Sequence[float]

@@ -10,18 +10,26 @@ it):
 
 * ``d``: every artwork pixel's distance to the artwork's edge (OpenCV's exact Euclidean
   distance transform, less half a pixel: the edge lies between pixel centres).
-* **core**: where ``d >= line_max / 2``: the centres of discs as wide as the line
+* the widths are read on the artwork blurred by half a mask pixel and cut at half (its
+  edges run through the middle of the mask's pixel steps, so a diagonal line is as wide
+  all along): ``s`` is the distance to that smoothed edge.
+* **core**: where ``s >= line_max / 2``: the centres of discs as wide as the line
   threshold that fit in the artwork.
 * **thick part** (the morphological opening): within ``line_max / 2`` of the core. The
   rest of the artwork, narrower than ``line_max`` everywhere, is **line art**.
-* **inset**: within ``line_max / 2 - needle / 2`` of the core (and ``d >= needle / 2``):
-  a disc of the needle's width centred anywhere in it stays inside the artwork. Its
-  boundary loops are the outlines, and the fill (hatch, cross-hatch, concentric or solid)
-  runs inside it, so a hatch run stops half a needle width short of the artwork's edge.
-* **centrelines**: each piece of line art longer than ``line_max`` is skeletonised
-  (scikit-image's ``skeletonize`` on the whole artwork around it, so the centreline runs
-  on through junctions) and the skeleton inside the piece drawn in the fewest strokes
-  (:mod:`tattotronix.path.centreline`).
+* **inset**: within ``line_max / 2 - needle / 2`` of the core, and ``s >= needle / 2``,
+  each less a fine pixel of margin (the smoothed edge cuts the mask's pixel steps): a
+  disc of the needle's width centred anywhere in it stays inside the artwork. Its
+  boundary loops, smoothed and simplified, are the outlines, and the fill (hatch,
+  cross-hatch, concentric or solid) runs inside it, so a hatch run stops half a needle
+  width short of the artwork's edge.
+* **safe**: where ``d >= needle / 2``: the needle may drag across a gap only along a
+  line inside it.
+* **centrelines**: each piece of line art at least ``line_max`` long is skeletonised
+  (scikit-image's ``skeletonize`` on the smoothed artwork around it, so the centreline
+  runs on through junctions) and the skeleton inside the piece drawn in the fewest
+  strokes (:mod:`tattotronix.path.centreline`); vector lines (``artwork.vector``) take
+  the place of the skeleton where they lie.
 """
 
 from __future__ import annotations
@@ -168,6 +176,33 @@ def _loops(region: NDArray[np.bool_], grid: FineGrid, offset: tuple[int, int],
     return outers, holes
 
 
+def _region_of(labels: NDArray[np.int32], where: NDArray[np.bool_]) -> int:
+    """The region label most of ``where`` lies on (0: none)."""
+    counts = np.bincount(labels[where], minlength=1)
+    counts[0] = 0
+    return int(counts.argmax())
+
+
+def _component_loops(binary: NDArray[np.bool_], labels: NDArray[np.int32], grid: FineGrid,
+                     min_px: int) -> dict[int, tuple[list[Loop], list[Loop]]]:
+    """Per region label, the outer and hole loops of every 8-connected component of
+    ``binary`` (each in the region it lies on most)."""
+    loops: dict[int, tuple[list[Loop], list[Loop]]] = {}
+    n, comp, stats, _ = cv2.connectedComponentsWithStats(binary.astype(np.uint8),
+                                                          connectivity=8)
+    for k in range(1, n):
+        x, y, w, h = stats[k, :4]
+        crop = comp[y:y + h, x:x + w] == k
+        lab = _region_of(labels[y:y + h, x:x + w], crop)
+        if lab == 0:
+            continue
+        outers, holes = _loops(crop, grid, (int(y), int(x)), min_px)
+        have = loops.setdefault(lab, ([], []))
+        have[0].extend(outers)
+        have[1].extend(holes)
+    return loops
+
+
 def compensate(labels: NDArray[np.int32], mask: InkMask, needle_mm: float, line_max_mm: float,
                min_loop_px: int, vector: VectorLines | None = None) -> Compensated:
     """Split every labelled region into its inset (outlines and fill) and its line art.
@@ -201,16 +236,7 @@ def compensate(labels: NDArray[np.int32], mask: InkMask, needle_mm: float, line_
     inset = (to_core <= half_px - r_px - INSET_MARGIN_PX) & (sdepth >= r_px + INSET_MARGIN_PX)
     inset_labels = np.where(inset, fine, 0).astype(np.int32)
 
-    loops: dict[int, tuple[list[Loop], list[Loop]]] = {}
-    n, comp, stats, _ = cv2.connectedComponentsWithStats(inset.astype(np.uint8), connectivity=8)
-    for k in range(1, n):
-        x, y, w, h = stats[k, :4]
-        crop = comp[y:y + h, x:x + w] == k
-        lab = int(np.bincount(fine[y:y + h, x:x + w][crop]).argmax())
-        outers, holes = _loops(crop, grid, (int(y), int(x)), min_loop_px * factor)
-        have = loops.setdefault(lab, ([], []))
-        have[0].extend(outers)
-        have[1].extend(holes)
+    loops = _component_loops(inset, fine, grid, min_loop_px * factor)
 
     lines: dict[int, list[Loop]] = {}
     widths: dict[int, list[NDArray[np.float64]]] = {}
@@ -242,7 +268,9 @@ def _centrelines(thin: NDArray[np.bool_], art: NDArray[np.bool_], fine: NDArray[
         r0, r1 = max(0, y - margin), min(hh, y + h + margin)
         c0, c1 = max(0, x - margin), min(ww, x + w + margin)
         skel = skeletonize(art[r0:r1, c0:c1]) & (comp[r0:r1, c0:c1] == k)
-        lab = int(np.bincount(fine[y:y + h, x:x + w][comp[y:y + h, x:x + w] == k]).argmax())
+        lab = _region_of(fine[y:y + h, x:x + w], comp[y:y + h, x:x + w] == k)
+        if lab == 0:
+            continue  # the smoothed artwork's, not the mask's
         for stroke in skeleton_strokes(skel, prune_px=line_px / 2):
             rc = stroke + np.array([r0, c0])
             if len(rc) < 2:
@@ -268,13 +296,10 @@ def _vector_lines(vector: VectorLines, fine: NDArray[np.int32], grid: FineGrid,
         band = np.zeros(fine.shape, np.uint8)
         thick = max(1, int(round(width / grid.res_mm)) + 2 * grid.factor)
         cv2.polylines(band, [pts], isClosed=False, color=1, thickness=thick, shift=4)
-        on = band.astype(bool)
-        counts = np.bincount(fine[on], minlength=1)
-        counts[0] = 0
         covered |= band
-        if counts.max() == 0:
+        lab = _region_of(fine, band.astype(bool))
+        if lab == 0:
             continue
-        lab = int(counts.argmax())
         lines.setdefault(lab, []).append(path)
         widths.setdefault(lab, []).append(np.full(len(path), float(width)))
     return covered.astype(bool)
@@ -318,12 +343,7 @@ def concentric_rings(comp: Compensated, pitch_mm: float, min_loop_px: int
         level = depth >= (k - 0.5) * pitch_px + 0.5
         if not level.any():
             return rings
-        n, comp_k, stats, _ = cv2.connectedComponentsWithStats(level.astype(np.uint8),
-                                                                connectivity=8)
-        for j in range(1, n):
-            x, y, w, h = stats[j, :4]
-            crop = comp_k[y:y + h, x:x + w] == j
-            lab = int(np.bincount(comp.inset[y:y + h, x:x + w][crop]).argmax())
-            outers, holes = _loops(crop, grid, (int(y), int(x)), min_loop_px * grid.factor)
+        for lab, (outers, holes) in _component_loops(level, comp.inset, grid,
+                                                     min_loop_px * grid.factor).items():
             rings.setdefault(lab, []).extend(outers + holes)
         k += 1

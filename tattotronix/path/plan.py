@@ -25,7 +25,7 @@ from tattotronix.art.grid import InkMask
 from tattotronix.art.vector import VectorLines
 from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
-from tattotronix.path.fill import MIN_RUN_PX, fill_regions
+from tattotronix.path.fill import MIN_RUN_PX
 from tattotronix.path.laps import Laps
 from tattotronix.path.order import MAX_PASSES, Order, OrderResult, optimise_order
 from tattotronix.path.panel import check_fits, to_arm
@@ -33,7 +33,7 @@ from tattotronix.path.params import ToolpathParams
 from tattotronix.path.path3d import Path3D, build_path_flat
 from tattotronix.path.polyline import resample_many
 from tattotronix.path.regions import find_regions
-from tattotronix.path.strokes import Drawing, assemble_drawing, compensated_drawing
+from tattotronix.path.strokes import Drawing, regions_drawing
 from tattotronix.path.timing import PathMetrics, measure, segment_lengths, timestamps
 
 __all__ = ["MAX_FILL_CELLS", "MAX_POINTS", "MAX_STROKES", "Toolpath", "check_fill_budget",
@@ -226,15 +226,8 @@ def plan_toolpath(mask: InkMask, params: ToolpathParams, max_passes: int = MAX_P
         mask.ink, mask.res_mm, params.min_region_mm2, params.min_loop_px
     )
     laps.lap("regions")
-    if params.compensate:
-        drawing = compensated_drawing(mask, labels, regions, params, vector)
-        laps.lap("fill")
-    else:
-        fill = fill_regions(labels, mask.xs, mask.ys, mask.res_mm, params.fill_pitch_mm,
-                            params.fill_angle_deg, params.fill_style)
-        laps.lap("fill")
-        drawing = assemble_drawing(mask, regions, fill)
-        laps.lap("regions")
+    drawing = regions_drawing(mask, labels, regions, params, vector)
+    laps.lap("fill")
     if not drawing.strokes:
         raise TattotronixError(
             f"the mask has no ink region of at least {params.min_region_mm2} mm^2 "

@@ -1,8 +1,10 @@
-"""From an ink mask to strokes: outlines (outer and holes) and hatch fill, in mm.
+"""From an ink mask to strokes: outlines (outer and holes), hatch fill, and with
+needle-width compensation line art along its centreline and concentric rings, in mm.
 
 The strokes come out in the original's order (docs/original.md, "2.2 Regions" to "2.4
 Hatch fill"): regions left to right by the mean x of their pixels; within a region the
-outer outline, the hole outlines, then the fill rows top down, alternating direction.
+outer outline, the hole outlines (then the lines), then the fill rows top down,
+alternating direction (or the rings).
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from tattotronix.path.polyline import (
 from tattotronix.path.regions import Region, find_regions
 
 __all__ = ["FILL_KINDS", "Drawing", "Stroke", "StrokeKind", "assemble_drawing", "build_drawing",
-           "compensated_drawing"]
+           "compensated_drawing", "regions_drawing"]
 
 
 class StrokeKind(IntEnum):
@@ -184,12 +186,14 @@ def _loops_mm(mask: InkMask, loops: list[NDArray[np.int32]]
     return out, ob
 
 
-def build_drawing(mask: InkMask, params: ToolpathParams) -> Drawing:
-    """Trace, smooth and hatch every region of the mask.
+def build_drawing(mask: InkMask, params: ToolpathParams,
+                  vector: VectorLines | None = None) -> Drawing:
+    """Trace, smooth and fill every region of the mask (:func:`regions_drawing`).
 
     Args:
         mask: the ink mask.
-        params: toolpath parameters (pitch, minimum region and loop sizes).
+        params: toolpath parameters (pitch, minimum region and loop sizes, compensation).
+        vector: the artwork's own lines (``artwork.vector``), if any.
 
     Returns:
         The strokes in the original's order and the region figures.
@@ -197,6 +201,16 @@ def build_drawing(mask: InkMask, params: ToolpathParams) -> Drawing:
     labels, regions = find_regions(
         mask.ink, mask.res_mm, params.min_region_mm2, params.min_loop_px
     )
+    return regions_drawing(mask, labels, regions, params, vector)
+
+
+def regions_drawing(mask: InkMask, labels: NDArray[np.int32], regions: list[Region],
+                    params: ToolpathParams, vector: VectorLines | None = None) -> Drawing:
+    """The strokes of traced regions (:func:`find_regions`): compensated for the needle's
+    width (:func:`compensated_drawing`) when ``params.compensate``, else the original's
+    outlines and hatch (:func:`assemble_drawing`)."""
+    if params.compensate:
+        return compensated_drawing(mask, labels, regions, params, vector)
     fill = fill_regions(labels, mask.xs, mask.ys, mask.res_mm, params.fill_pitch_mm,
                         params.fill_angle_deg, params.fill_style)
     return assemble_drawing(mask, regions, fill)
