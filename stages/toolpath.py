@@ -21,7 +21,7 @@ from tattotronix.art.vector import VectorLines
 from tattotronix.config.schema import Config
 from tattotronix.io.artifacts import ToolpathRecord, make_provenance
 from tattotronix.io.outputs import Outputs
-from tattotronix.path.fidelity import fidelity_image, planned_ink, save_png
+from tattotronix.path.fidelity import fidelity_image, save_png
 from tattotronix.path.figure import toolpath_figure
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.plan import plan_toolpath
@@ -58,9 +58,7 @@ def main(cfg: Config, out: Outputs) -> None:
     toolpath_figure(
         tp, params.panel_size_mm, out.tmp_path(out.path("figures", name, "toolpath.png")), name
     )
-    ink = planned_ink(mask, tp.path.uvz_mm, tp.path.stroke,
-                      tp.drawing.is_fill[seq], float(cfg.toolpath.needle_width_mm),
-                      float(cfg.toolpath.ink_res_mm), tp.drawing.width_mm[seq])
+    ink = tp.ink(mask, float(cfg.toolpath.needle_width_mm), float(cfg.toolpath.ink_res_mm))
     save_png(fidelity_image(ink.art, ink.ink), float(cfg.toolpath.ink_res_mm),
              out.tmp_path(out.path("figures", name, "artwork_ink.png")))
     out.write_json(out.path("metrics", "toolpath", f"{name}.json"),

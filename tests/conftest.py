@@ -97,3 +97,14 @@ def run_side_by_side(stage: str, folders: dict[str, Path], *overrides: str
         out[key] = (subprocess.CompletedProcess(proc.args, proc.returncode, stdout, stderr),
                     folders[key])
     return out
+
+
+def default_signals() -> None:
+    """``preexec_fn`` of a child whose test stops it with a signal: SIGINT, SIGTERM and
+    SIGHUP at their defaults in the child, whatever this run inherited (a background job
+    or ``nohup`` starts pytest with SIGINT or SIGHUP ignored, and a child inherits an
+    ignored signal across exec)."""
+    import signal
+
+    for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, signal.SIG_DFL)

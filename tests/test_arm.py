@@ -22,13 +22,20 @@ from tattotronix.hardware import (
     default_calibration,
     default_calibration_mapping,
 )
-from tattotronix.hardware.arm import RESUME_MARGIN_S, TEST_HOOK_ENV, ArmState, ramp
+from tattotronix.hardware.arm import (
+    DRY_RUN_STATE,
+    RESUME_MARGIN_S,
+    TEST_HOOK_ENV,
+    ArmState,
+    ramp,
+    state_file_of,
+)
 from tattotronix.hardware.program import compile_program, count_period_us
 from tattotronix.hardware.pulse import hold_pulses
 from tattotronix.kinematics import Chain
 from tattotronix.robot.description import RobotDescription
 
-from .conftest import ROOT
+from .conftest import ROOT, default_signals
 
 SMALL = ["mask.width_mm=24", "mask.min_region_mm2=0.5"]
 ALL_OFF = {"addr": 64, "reg": 0xFA, "data": [0, 0, 0, 0x10]}
@@ -170,7 +177,8 @@ def _arm_cmd(data: Path, *extra: str) -> list[str]:
 
 def _arm(data: Path, *extra: str, hook: str | None = None) -> subprocess.CompletedProcess[str]:
     return subprocess.run(_arm_cmd(data, "dry_run=true", "realtime=false", *extra), cwd=ROOT,
-                          env=_env(hook), capture_output=True, text=True, timeout=600)
+                          env=_env(hook), capture_output=True, text=True, timeout=600,
+                          preexec_fn=default_signals)
 
 
 def _log(data: Path, name: str) -> list[dict]:
@@ -187,8 +195,13 @@ def _poses(data: Path, session: int | None = None) -> list[dict]:
     return [p for p in _log(data, "poses.jsonl") if session is None or p["session"] == session]
 
 
+def _state_file(data: Path) -> Path:
+    """A dry run's state file: in its run folder, never the real arm's (data/arm/)."""
+    return data / "runs" / "small-arm" / DRY_RUN_STATE
+
+
 def _state(data: Path) -> dict:
-    return json.loads((data / "arm" / "state.json").read_text())
+    return json.loads(_state_file(data).read_text())
 
 
 def _counts_within_limits(writes: list[dict]) -> None:
@@ -272,13 +285,14 @@ def test_dry_run_draw_is_deterministic_appends_and_survives_a_missing_bus(data: 
     first = _arm(data)
     assert first.returncode == 0, first.stderr
     logs = [data / "runs" / "small-arm" / f for f in ("i2c.jsonl", "poses.jsonl")]
-    kept = {p: p.read_bytes() for p in [*logs, data / "arm" / "state.json"]}
+    kept = {p: p.read_bytes() for p in [*logs, _state_file(data)]}
+    assert not (data / "arm").exists()  # the real arm's state is not the dry run's
     # a real run without the device: refused before anything is opened for writing
     r = subprocess.run(_arm_cmd(data, "hardware.servos.device=/dev/i2c-77"), cwd=ROOT,
                        env=_env(), capture_output=True, text=True, timeout=600)
     assert r.returncode == 2 and "/dev/i2c-77" in r.stderr and "Traceback" not in r.stderr
     assert {p: p.read_bytes() for p in kept} == kept
-    (data / "arm" / "state.json").unlink()  # start again from the same (zero) pose
+    _state_file(data).unlink()  # start again from the same (zero) pose
     second = _arm(data)
     assert second.returncode == 0, second.stderr
     for p in logs:  # the second session appends: the first one's logs are kept
@@ -351,7 +365,7 @@ def test_every_stop_leaves_the_needle_up_and_resume_draws_every_frame(
     """The acceptance test: the signal at each kill point (the ramp, while drawing, the
     approach of a resume, the lift after a stop; with SIGKILL also the first lift of the
     resume after it), each stop checked from the poses sent, then resumed to the end."""
-    state_file = data / "arm" / "state.json"
+    state_file = _state_file(data)
     state_file.parent.mkdir(parents=True)
     state_file.write_text(json.dumps({"q": [0.3, 0.0, 0.0, 0.0, 0.0], "status": "done"}))
     kill = sig == "SIGKILL"
@@ -401,11 +415,12 @@ def _until_hook_waits(proc: subprocess.Popen[str]) -> None:
 def test_hang_up_and_a_double_ctrl_c_from_outside_in_real_time(data: Path, geo: Geometry
                                                                 ) -> None:
     """Signals from another process while the frames go out at 50 Hz: ``kill -HUP`` a
-    second into drawing (a closed terminal), then on the resume two SIGINTs 30 ms apart,
-    while a second session is refused."""
+    second into drawing (a closed terminal), then on the resume two SIGINTs 30 ms apart
+    while its approach has the needle below the clearance height (so the first one's
+    lift is under way when the second comes), while a second session is refused."""
     proc = subprocess.Popen(_arm_cmd(data, "dry_run=true", "realtime=true"), cwd=ROOT,
                             env=_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True, preexec_fn=default_signals)
     poses = data / "runs" / "small-arm" / "poses.jsonl"
     deadline = time.time() + 120
     while time.time() < deadline:  # wait until it draws
@@ -420,8 +435,8 @@ def test_hang_up_and_a_double_ctrl_c_from_outside_in_real_time(data: Path, geo: 
     assert "while drawing" in err and "completed" in err
 
     proc = subprocess.Popen(_arm_cmd(data, "dry_run=true", "realtime=true", "resume=true"),
-                            cwd=ROOT, env=_env("draw:50:wait"), stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+                            cwd=ROOT, env=_env("approach:60:wait"), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, preexec_fn=default_signals)
     _until_hook_waits(proc)
     other = _arm(data, "resume=true")
     assert other.returncode == 2 and "another arm session is running" in other.stderr
@@ -512,3 +527,13 @@ def test_the_arm_refuses_a_colliding_drawing_before_the_bus(desc: RobotDescripti
     near_home = np.zeros((21, 5))
     near_home[:, 0] = np.linspace(0.0, 0.3, 21)
     check_drawing_clear(cfg, desc, t, near_home)
+
+
+def test_a_dry_run_keeps_its_own_state_file(tmp_path: Path) -> None:
+    """The real arm's last commanded pose is hardware.state_file under paths.data; a dry
+    run's is in its run folder, so a rehearsal never changes what the arm believes."""
+    folder = tmp_path / "runs" / "x-arm"
+    real = compose_settings(["dry_run=false"])
+    assert state_file_of(real, tmp_path, folder) == tmp_path / "arm" / "state.json"
+    dry = compose_settings(["dry_run=true"])
+    assert state_file_of(dry, tmp_path, folder) == folder / DRY_RUN_STATE

@@ -37,7 +37,7 @@ from tattotronix.config.schema import Config, Range, range_of
 from tattotronix.errors import ConfigError, StageInputMissing, TattotronixError
 from tattotronix.io.outputs import Outputs
 
-from .conftest import PYTHON, ROOT, stage_env
+from .conftest import PYTHON, ROOT, default_signals, stage_env
 
 # ------------------------------------------------------------------ the schema and its keys
 
@@ -617,7 +617,8 @@ def test_ctrl_c_ends_a_stage_in_one_line_with_130_and_nothing_written(tmp_path: 
     script.write_text(SIGINT_STAGE)
     data = tmp_path / "data"
     run = subprocess.run([PYTHON, str(script), f"paths.data={data}"], cwd=ROOT,
-                         env=stage_env(), capture_output=True, text=True, timeout=120)
+                         env=stage_env(), capture_output=True, text=True, timeout=120,
+                         preexec_fn=default_signals)
     assert run.returncode == 130, run.stderr
     assert run.stderr.strip().splitlines() == [
         "interrupted: interrupted (Ctrl-C): stopped, nothing written"]
@@ -644,6 +645,7 @@ def test_ctrl_c_on_a_real_stage(tmp_path: Path) -> None:
     proc = subprocess.Popen([PYTHON, "stages/toolpath.py", f"paths.data={data}",
                              "artwork.name=t", "toolpath.pitch_mm=0.05"], cwd=ROOT,
                             env=stage_env(), text=True, stdout=subprocess.PIPE,
+                            preexec_fn=default_signals,
                             stderr=subprocess.PIPE)
     deadline = time.monotonic() + 120
     while _cpu_s(proc.pid) < 6.0 and proc.poll() is None and time.monotonic() < deadline:
@@ -682,7 +684,8 @@ def test_ctrl_c_stops_a_study_and_its_workers_at_once(draw_data: Path) -> None:
          f"artwork.source={draw_data.parent / 'small.png'}", "mask.width_mm=24",
          "mask.min_region_mm2=0.5", "draw.progress=false",
          "study.approach_mm=[0.0,0.5,1.0,2.0,4.0,6.0]"],
-        cwd=ROOT, env=stage_env(), text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+        cwd=ROOT, env=stage_env(), text=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        preexec_fn=default_signals)
     deadline = time.monotonic() + 120
     while len(_children(proc.pid)) < 2 and proc.poll() is None and time.monotonic() < deadline:
         time.sleep(0.05)

@@ -14,6 +14,7 @@ import pytest
 import yaml
 
 from tattotronix.report.certify import (
+    EXPERIMENT_ENV,
     OUTPUT_NAME,
     CertifyReport,
     certify,
@@ -340,13 +341,15 @@ def test_an_exemption_without_reason_fails(tmp_path: Path) -> None:
 
 
 def test_a_stale_exemption_fails(tmp_path: Path) -> None:
-    # now traceable
+    # now traceable: a note (a new metric can match a quoted number by chance), not a
+    # failure
     report = certify(project(tmp_path, README, metrics=METRICS,
                              exemptions=exemption(figure="51.5 µm", reason="old")))
-    assert len(report.failures) == 2  # 300 µm untraced, and the stale exemption
-    stale = report.failures[1]
+    assert len(report.failures) == 1  # 300 µm untraced
+    [stale] = report.notes
     assert (stale.document, stale.text) == ("docs/certify.yaml", "README.md: 51.5 µm")
-    assert "no longer needed" in stale.why and "marking_max_um" in stale.why
+    assert "perhaps no longer needed" in stale.why and "marking_max_um" in stale.why
+    assert report.summary()["notes"] == 1
     # matches no figure (written with other decimals, or in another document)
     for ex in (exemption(figure="300.0 µm"), exemption(document="docs/x.md")):
         report = certify(project(tmp_path, README, metrics=METRICS,
@@ -449,9 +452,12 @@ def test_a_readme_number_edited_to_disagree_with_its_metrics_fails(
 # --------------------------------------------------------------------------- the stage
 
 
-def _stage(root: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([PYTHON, str(ROOT / "stages" / "certify.py")], cwd=root, env=ENV,
-                          capture_output=True, text=True, timeout=300)
+def _stage(root: Path, env: Mapping[str, str] | None = None
+           ) -> subprocess.CompletedProcess[str]:
+    run_env = {k: v for k, v in ENV.items() if k != EXPERIMENT_ENV}
+    return subprocess.run([PYTHON, str(ROOT / "stages" / "certify.py")], cwd=root,
+                          env={**run_env, **(env or {})}, capture_output=True, text=True,
+                          timeout=300)
 
 
 def test_the_stage_writes_the_counts_or_exits_2(tmp_path: Path) -> None:
@@ -474,4 +480,25 @@ def test_the_stage_writes_the_counts_or_exits_2(tmp_path: Path) -> None:
     assert "certify: error: 2 failure(s)" in run.stderr
     assert "README.md:1: 300 µm: not traced" in run.stderr
     assert "README.md:5: missing.md: broken link" in run.stderr
+    assert not (bad / "data" / OUTPUT_NAME).exists()
+
+
+def test_inside_an_experiment_the_drift_is_a_metric_not_a_failure(tmp_path: Path) -> None:
+    """``dvc exp run`` (DVC_EXP_BASELINE_REV set) changes numbers on purpose: the stage
+    records the documents' drift in certify.json and succeeds, so the experiment is
+    saved; outside one, the same drift fails the stage (``main`` never carries it)."""
+    bad = project(tmp_path / "bad", README, metrics=METRICS)
+    run = _stage(bad, {EXPERIMENT_ENV: "0" * 40})
+    assert run.returncode == 0, run.stderr
+    assert "recorded, not enforced" in run.stdout + run.stderr
+    out = json.loads((bad / "data" / OUTPUT_NAME).read_text())
+    assert out["failures"] == 1
+    assert out["drift"] == ["README.md:1: 300 µm: not traced: no number in "
+                            "data/metrics/**/*.json or params.yaml rounds to 300 at 0 "
+                            "decimal(s) (closest: data/metrics/runs/x.json marking_max_um = "
+                            "51.47); correct it, or exempt it with a reason in "
+                            "docs/certify.yaml"]
+    # an empty variable is no experiment
+    (bad / "data" / OUTPUT_NAME).unlink()
+    assert _stage(bad, {EXPERIMENT_ENV: ""}).returncode == 2
     assert not (bad / "data" / OUTPUT_NAME).exists()

@@ -293,3 +293,31 @@ def test_lines_round_trip(tmp_path: Path) -> None:
 def _saved(lines: VectorLines, folder: Path) -> Path:
     lines.save(folder / "e.npz")
     return folder / "e.npz"
+
+
+def test_the_edges_of_a_photograph_are_drawn_as_centrelines() -> None:
+    """``mask.method=edges`` makes bands along the photograph's edges, some wider than a
+    line; each is drawn once along its centreline, never outlined and filled."""
+    from tattotronix.art.mask import make_mask
+    from tattotronix.config.schema import MaskMethod
+
+    yy, xx = np.mgrid[0:200, 0:240]
+    grey = np.full((200, 240), 230, np.uint8)
+    grey[np.hypot(xx - 70, yy - 100) <= 45] = 40  # a dark disc: one ring of edge
+    grey[40:160, 150:210] = 90  # a grey box: one rectangle of edge
+    mask, _ = make_mask(grey, 0.25, MaskMethod.edges, min_region_mm2=0.0, edge_sigma_px=2.5)
+    cfg = MaskConfig(method=MaskMethod.edges)
+    params = ToolpathParams.from_config(ToolpathConfig(compensate=True), cfg, PanelConfig())
+    assert params.lines_only
+    tp = plan_toolpath(mask, params)
+    kinds = set(tp.drawing.kinds.tolist())
+    assert kinds == {int(StrokeKind.LINE)}, kinds  # no outlines, no fill
+    assert len(tp.drawing.strokes) == 2  # each closed band is one stroke
+    # along the band's middle: the disc's edge is a circle of 45 px (11.25 mm) about its
+    # centre, 50 px (12.5 mm) left of the image's
+    ring = min(tp.drawing.strokes, key=lambda st: st.path_mm[:, 0].mean())
+    r = np.hypot(ring.path_mm[:, 0] + 12.5, ring.path_mm[:, 1])
+    assert abs(np.median(r) - 11.25) < 0.4
+    # threshold masks keep their wide parts outlined and filled
+    plain = plan_toolpath(mask, dataclasses.replace(params, lines_only=False))
+    assert len(plain.drawing.strokes) > 2

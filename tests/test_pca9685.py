@@ -62,8 +62,13 @@ def started(bus: RecordingBus | None = None) -> tuple[PCA9685, RecordingBus]:
 
 @pytest.fixture
 def restore_signals() -> Iterator[None]:
-    """Put SIGINT/SIGTERM/SIGHUP handlers back whatever a test did."""
+    """Start the test with Python's own SIGINT/SIGTERM/SIGHUP dispositions (pytest run as
+    a background job or under ``nohup`` inherits SIGINT or SIGHUP ignored, which the
+    board rightly leaves alone), and put the handlers back whatever the test did."""
     saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)}
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGHUP, signal.SIG_DFL)
     yield
     for s, h in saved.items():
         signal.signal(s, h)

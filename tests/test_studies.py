@@ -295,10 +295,15 @@ def test_the_nine_rate_verdicts_agree_with_the_computed_boundary() -> None:
 
 def test_control_study_orders_like_the_original() -> None:
     """More bandwidth tracks better (pid_g, up to where the whole drawing saturates), and
-    gravity feedforward beats plain PID."""
+    feeding the inertia torque forward beats every PID structure at the same bandwidth by
+    far. (Gravity feedforward alone, which beat plain PID in the original's 12 s window,
+    does not on the compensated emblem at wn 20: the inertia, not gravity, dominates
+    there; docs/control.md.)"""
     c = _stored("control")
     ok = [w for w in (10, 20, 40, 80, 160) if c[f"pid_g-wn{w}"]["whole"]["verdict"] == "ok"]
     settled = [c[f"pid_g-wn{w}"]["whole"]["settled_mean_um"] for w in ok]
     assert settled == sorted(settled, reverse=True)
-    assert (c["pid_g-wn20"]["busiest"]["settled_mean_um"]
-            < c["pid-wn20"]["busiest"]["settled_mean_um"])
+    for window in ("whole", "busiest"):
+        ct = c["computed_torque-wn20"][window]["settled_mean_um"]
+        pids = [c[f"{s}-wn20"][window]["settled_mean_um"] for s in ("pid", "pid_g", "pid_g_v")]
+        assert 10 * ct < min(pids)

@@ -213,7 +213,7 @@ def test_joint_rates_agree_with_q_of_t(traj: Trajectory) -> None:
     radius = turn_radii(traj.tcp)
     smooth = (radius[:-1] > traj.params.corner_radius_m) & (
         radius[1:] > traj.params.corner_radius_m)
-    assert smooth.mean() > 0.9
+    assert smooth.mean() > 0.85  # most of the drawing (the fill's row turns are corners)
     err = np.abs(chord - mean)[smooth].max()
     assert err <= 0.01 * np.abs(traj.qd).max()
     assert np.allclose(np.diff(traj.law.s) / dt, 0.5 * (traj.law.sdot[:-1] +

@@ -476,7 +476,7 @@ class ToolpathConfig:
                               why="the hatch spacing")
     # the needle's ink line width: outlines run half of it inside the artwork's edge
     needle_width_mm: float = bounded(0.3, lo=0, lo_open=True, hi=10, unit="mm")
-    compensate: bool = False  # true: compensate the needle width; narrow parts as line art
+    compensate: bool = True  # true: compensate the needle width; narrow parts as line art
     # parts narrower than this are drawn as one pass along their centreline (0: none)
     line_max_mm: float = bounded(0.6, lo=0, hi=100, unit="mm")
     # the raster the planned ink is measured on against the artwork (finer than the
@@ -760,6 +760,26 @@ class ControlStudyConfig:
 
 
 @settings
+class FillCase:
+    """One fill style of the fill-styles comparison (``stages/fills.py``): the values of
+    ``toolpath.fill_style`` and ``toolpath.fill_angle_deg`` it plans with."""
+
+    fill_style: FillStyle = MISSING
+    fill_angle_deg: float = bounded(0.0, lo=-180, hi=180, unit="deg",
+                                    why="the hatch's angle from the x axis")
+
+
+@settings
+class FillsStudyConfig:
+    """The fill styles side by side (docs/toolpath.md, "Fill styles"): each case is the
+    study artwork planned again with its style, scored against the artwork; the figure
+    shows a ``zoom_mm`` square of each, where the artwork is densest."""
+
+    cases: dict[str, FillCase] = MISSING
+    zoom_mm: float = bounded(12.0, lo=1, hi=1000, unit="mm", why="the side of each crop")
+
+
+@settings
 class ActuatorOption:
     """A way to drive the servos: how the pulse is stepped, and which joints are bus servos.
 
@@ -823,6 +843,7 @@ class StudyConfig:
     timelaw_jerk_rad_s3: list[int] = bounded(factory=lambda: [500, 2000], lo=1,
                                              hi=1_000_000, unit="rad/s^3")
     actuator: ActuatorStudyConfig = field(default_factory=ActuatorStudyConfig)
+    fills: FillsStudyConfig = field(default_factory=FillsStudyConfig)
 
 
 @settings

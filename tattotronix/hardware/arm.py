@@ -28,7 +28,9 @@
   ``poses.jsonl`` as the last one commanded, lifts the needle from there first, and
   restarts :data:`RESUME_MARGIN_S` of drawing before the last frame known to be sent.
 * ``dry_run=true`` runs all of it against a recording bus, under
-  ``data/runs/<name>-arm/``; ``realtime=false`` skips the waits.
+  ``data/runs/<name>-arm/``, with a state file of its own there: a dry run never changes
+  what the real arm's state file (``hardware.state_file``) says about the arm.
+  ``realtime=false`` skips the waits.
 * Tests time their stops with the environment variable :data:`TEST_HOOK_ENV`:
   ``phase:n:action[;...]`` acts after the ``n``-th frame of ``phase`` (``lift``,
   ``ramp``, ``approach``, ``draw``) sent in the session; the action is a signal the
@@ -67,14 +69,17 @@ from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain, IkOptions, solve_path
 from tattotronix.robot.description import RobotDescription, build_description
 
-__all__ = ["RESUME_MARGIN_S", "TEST_HOOK_ENV", "ArmSession", "ArmState", "Paused",
-           "calibration_from_config", "check_drawing_clear", "ramp"]
+__all__ = ["DRY_RUN_STATE", "RESUME_MARGIN_S", "TEST_HOOK_ENV", "ArmSession", "ArmState",
+           "Paused", "calibration_from_config", "check_drawing_clear", "ramp",
+           "state_file_of"]
 
 log = logging.getLogger("tattotronix.arm")
 Array = NDArray[np.float64]
 
 #: how much drawing a resume after a crash goes back before the last frame known sent, s
 RESUME_MARGIN_S = 0.5
+#: a dry run's state file, in its run folder (never the real arm's)
+DRY_RUN_STATE = "state.json"
 #: the test hook (module docstring); unset in normal use
 TEST_HOOK_ENV = "TATTOTRONIX_ARM_TEST_HOOK"
 _STOP_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
@@ -810,6 +815,16 @@ def check_drawing_clear(cfg: Config, desc: RobotDescription, t: Array, q: Array)
              rep.min_clearance_m[rep.worst] * 1e3, rep.pair_names[rep.worst])
 
 
+
+def state_file_of(cfg: Config, data: Path, folder: Path) -> Path:
+    """Where a session keeps the arm's last commanded pose: ``hardware.state_file`` under
+    ``paths.data`` for the real arm, the run's own folder on a dry run (whose recording
+    bus moves no arm)."""
+    if cfg.dry_run:
+        return folder / DRY_RUN_STATE
+    return Path(data).joinpath(*Path(str(cfg.hardware.state_file)).parts)
+
+
 def draw_on_arm(cfg: Config, out: Outputs) -> JsonDict:
     """``draw.py backend=arm``: compile the drawing and stream it (see the module docstring).
 
@@ -832,10 +847,10 @@ def draw_on_arm(cfg: Config, out: Outputs) -> JsonDict:
     speed = float(cfg.hardware.ramp_rad_s)
     if not (np.isfinite(speed) and speed > 0):
         raise TattotronixError(f"hardware.ramp_rad_s={speed}: give a positive speed in rad/s")
+    folder = run_dir(out.data, run_label(drawing.name, "arm"))
     session = ArmSession(
         name=drawing.name, program=program, calib=calib, chain=Chain.from_description(desc),
-        run_dir=run_dir(out.data, run_label(drawing.name, "arm")),
-        state_file=out.path(*Path(str(cfg.hardware.state_file)).parts),
+        run_dir=folder, state_file=state_file_of(cfg, out.data, folder),
         clearance_z_m=clearance, surface_z_m=surface, feed_m_s=cfg.toolpath.feed_mark_m_s,
         ramp_rad_s=speed, ik=ik_settings(cfg.ik), dry_run=bool(cfg.dry_run),
         realtime=bool(cfg.realtime), resume=bool(cfg.resume),

@@ -260,11 +260,13 @@ class PlannedInk:
 
     Attributes:
         art: the artwork on the grid. ink: the ink. fidelity: the comparison.
+        grid: the grid both lie on.
     """
 
     art: Mask
     ink: Mask
     fidelity: ArtworkFidelity
+    grid: InkGrid
 
 
 def planned_ink(mask: InkMask, uvz_mm: Array, stroke: NDArray[np.integer],
@@ -297,7 +299,7 @@ def planned_ink(mask: InkMask, uvz_mm: Array, stroke: NDArray[np.integer],
     lines = None
     if stroke_width_mm is not None:
         lines = line_width(ink, grid, *line_runs(uvz_mm, stroke, stroke_width_mm))
-    return PlannedInk(art, ink, artwork_fidelity(art, ink, res_mm, outlines, fill, lines))
+    return PlannedInk(art, ink, artwork_fidelity(art, ink, res_mm, outlines, fill, lines), grid)
 
 
 def line_runs(uvz_mm: Array, stroke: NDArray[np.integer], stroke_width_mm: NDArray[np.float64]

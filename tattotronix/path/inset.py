@@ -204,7 +204,8 @@ def _component_loops(binary: NDArray[np.bool_], labels: NDArray[np.int32], grid:
 
 
 def compensate(labels: NDArray[np.int32], mask: InkMask, needle_mm: float, line_max_mm: float,
-               min_loop_px: int, vector: VectorLines | None = None) -> Compensated:
+               min_loop_px: int, vector: VectorLines | None = None, *,
+               lines_only: bool = False) -> Compensated:
     """Split every labelled region into its inset (outlines and fill) and its line art.
 
     Args:
@@ -217,6 +218,8 @@ def compensate(labels: NDArray[np.int32], mask: InkMask, needle_mm: float, line_
         vector: lines taken from the artwork's geometry (``artwork.vector``): those
             narrower than ``line_max_mm`` are drawn as they are, and the line art under
             them is not skeletonised.
+        lines_only: every part is line art, however wide (the edges of a photograph,
+            ``mask.method=edges``): no inset, no fill, one centreline per band.
 
     Returns:
         The inset, its loops and the centrelines (see :class:`Compensated`).
@@ -231,7 +234,7 @@ def compensate(labels: NDArray[np.int32], mask: InkMask, needle_mm: float, line_
     sdepth = _distance(smooth) - 0.5
     r_px = needle_mm / 2 / grid.res_mm
     half_px = max(line_max_mm / 2 / grid.res_mm, r_px)
-    core = sdepth >= half_px
+    core = sdepth >= half_px if not lines_only else np.zeros(art.shape, dtype=bool)
     to_core = _distance(~core) if core.any() else np.full(art.shape, np.inf, np.float32)
     inset = (to_core <= half_px - r_px - INSET_MARGIN_PX) & (sdepth >= r_px + INSET_MARGIN_PX)
     inset_labels = np.where(inset, fine, 0).astype(np.int32)
@@ -240,7 +243,7 @@ def compensate(labels: NDArray[np.int32], mask: InkMask, needle_mm: float, line_
 
     lines: dict[int, list[Loop]] = {}
     widths: dict[int, list[NDArray[np.float64]]] = {}
-    if line_max_mm > 0:
+    if line_max_mm > 0 or lines_only:
         thin = smooth & ~(to_core <= half_px)
         if vector is not None:
             thin &= ~_vector_lines(vector, fine, grid, line_max_mm, lines, widths)

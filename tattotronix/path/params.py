@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from tattotronix.config.schema import MaskConfig, PanelConfig, ToolpathConfig
+from tattotronix.config.schema import MaskConfig, MaskMethod, PanelConfig, ToolpathConfig
 from tattotronix.errors import TattotronixError
 
 __all__ = ["ToolpathParams"]
@@ -28,6 +28,8 @@ class ToolpathParams:
             and draw parts narrower than ``line_max_mm`` along their centreline
             (:mod:`tattotronix.path.inset`); False: the original's strokes.
         line_max_mm: parts narrower than this are line art (0: none), mm.
+        lines_only: every part is line art, drawn along its centreline however wide (with
+            ``compensate``): the edge bands of a photograph (``mask.method=edges``).
         fill_style: ``hatch``, ``cross`` (a second hatch at 90 degrees), ``concentric``
             (rings parallel to the outline) or ``solid`` (a hatch at the needle's width).
         fill_angle_deg: the hatch's angle from the x axis, degrees (anticlockwise).
@@ -63,6 +65,7 @@ class ToolpathParams:
     needle_width_mm: float = 0.3
     compensate: bool = False
     line_max_mm: float = 0.6
+    lines_only: bool = False
 
     def __post_init__(self) -> None:
         positive = {
@@ -107,7 +110,8 @@ class ToolpathParams:
 
         Args:
             toolpath: the ``toolpath`` settings.
-            mask: the ``mask`` settings (only ``min_region_mm2`` is read).
+            mask: the ``mask`` settings (``min_region_mm2``, and ``method``: the edges of
+                a photograph are line art).
             panel: ``robot.panel`` (only the width and height are read).
         """
         return cls(
@@ -133,6 +137,7 @@ class ToolpathParams:
             needle_width_mm=float(toolpath.needle_width_mm),
             compensate=bool(toolpath.compensate),
             line_max_mm=float(toolpath.line_max_mm),
+            lines_only=mask.method is MaskMethod.edges,
         )
 
     @property

@@ -25,6 +25,7 @@ from tattotronix.art.grid import InkMask
 from tattotronix.art.vector import VectorLines
 from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
+from tattotronix.path.fidelity import PlannedInk, planned_ink
 from tattotronix.path.fill import MIN_RUN_PX
 from tattotronix.path.laps import Laps
 from tattotronix.path.order import MAX_PASSES, Order, OrderResult, optimise_order
@@ -199,6 +200,15 @@ class Toolpath:
                 "kept_original": self.ordering.kept_original,
             },
         }
+
+
+    def ink(self, mask: InkMask, needle_mm: float, res_mm: float) -> PlannedInk:
+        """The ink this path draws, at ``needle_mm`` wide on a ``res_mm`` grid, against
+        the artwork ``mask`` it was planned from (:func:`~tattotronix.path.fidelity.planned_ink`;
+        the lines along centrelines with their designed widths)."""
+        seq = self.order.sequence
+        return planned_ink(mask, self.path.uvz_mm, self.path.stroke, self.drawing.is_fill[seq],
+                           needle_mm, res_mm, self.drawing.width_mm[seq])
 
 
 def plan_toolpath(mask: InkMask, params: ToolpathParams, max_passes: int = MAX_PASSES,

@@ -264,7 +264,7 @@ def compensated_drawing(mask: InkMask, labels: NDArray[np.int32], regions: list[
         vector: the artwork's own lines (``artwork.vector``), if any.
     """
     comp = compensate(labels, mask, params.needle_width_mm, params.line_max_mm,
-                      params.min_loop_px, vector)
+                      params.min_loop_px, vector, lines_only=params.lines_only)
     grid = comp.grid
     rings: dict[int, list[NDArray[np.float64]]] = {}
     fill = Hatch(np.zeros(0, np.int32), np.zeros(0, np.intp), np.zeros((0, 2)), np.zeros((0, 2)))

@@ -467,7 +467,8 @@ def _law_of(x: Array, h: Array) -> tuple[Array, Array, Array, Array]:
 def _slowdown(t: Array, sdot: Array, sddot: Array, dq: Array, d2q: Array, feed: Array,
               limits: JointLimits, tip: TipLimit | None, jerk: float
               ) -> tuple[Array, bool] | None:
-    """Where the filtered law exceeds a limit at a sample: ``(need, jerk_exceeded)`` with
+    """Where the filtered law exceeds a limit at a sample (or, for acceleration, over an
+    interval between samples): ``(need, jerk_exceeded)`` with
     ``need`` (N,) the factor each point's squared speed must shrink by (1 where it keeps
     every limit), or ``None`` when every sample keeps every limit. The feed (``feed``,
     the squared path-speed cap) and velocity scale with ``sdot``, acceleration with
@@ -480,6 +481,10 @@ def _slowdown(t: Array, sdot: Array, sddot: Array, dq: Array, d2q: Array, feed: 
     jk = sample_jerk(t, qdd).max(axis=1) / jerk
     rv = (np.abs(qd) / limits.velocity).max(axis=1)
     ra = (np.abs(qdd) / limits.acceleration).max(axis=1)
+    # the interval's mean acceleration (what a consumer differentiating the samples sees)
+    rm = (sample_jerk(t, qd) / limits.acceleration).max(axis=1)
+    ra[:-1] = np.maximum(ra[:-1], rm)
+    ra[1:] = np.maximum(ra[1:], rm)
     if tip is not None:
         ra = np.maximum(ra, np.where(tip.points(), tip.accel(sdot, sddot)
                                      / tip.accel_m_s2, 0.0))
