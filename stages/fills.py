@@ -13,8 +13,7 @@ from __future__ import annotations
 import logging
 
 from tattotronix.art.artwork import artwork_name
-from tattotronix.art.grid import InkMask
-from tattotronix.art.vector import VectorLines
+from tattotronix.art.stored import stored_artwork
 from tattotronix.config.schema import Config
 from tattotronix.io.outputs import Outputs
 from tattotronix.path.fillstyles import compare_fill_styles, fills_figure
@@ -27,16 +26,13 @@ log = logging.getLogger("tattotronix.stages.fills")
 def main(cfg: Config, out: Outputs) -> None:
     """Plan every fill style of ``study.fills``; write the figure and the metrics."""
     name = artwork_name(cfg.artwork)
-    mask = InkMask.load(out.require(out.path("mask", f"{name}.npz"), "mask"))
-    vector = None
-    if cfg.artwork.vector:
-        vector = VectorLines.load(out.require(out.path("artwork", f"{name}-lines.npz"),
-                                              "artwork"))
+    stored = stored_artwork(cfg, out, name)
     params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
     cases = {k: (c.fill_style.name, float(c.fill_angle_deg))
              for k, c in cfg.study.fills.cases.items()}
-    result = compare_fill_styles(mask, params, cases, float(cfg.toolpath.needle_width_mm),
-                                 float(cfg.toolpath.ink_res_mm), name, vector)
+    result = compare_fill_styles(stored.mask, params, cases,
+                                 float(cfg.toolpath.needle_width_mm),
+                                 float(cfg.toolpath.ink_res_mm), name, stored.vector)
     fills_figure(result, float(cfg.study.fills.zoom_mm),
                  out.tmp_path(out.path("figures", name, "fills.png")))
     out.write_json(out.path("metrics", "fills", f"{name}.json"), result.metrics())

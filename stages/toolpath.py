@@ -16,8 +16,7 @@ from __future__ import annotations
 import logging
 
 from tattotronix.art.artwork import artwork_name
-from tattotronix.art.grid import InkMask
-from tattotronix.art.vector import VectorLines
+from tattotronix.art.stored import stored_artwork
 from tattotronix.config.schema import Config
 from tattotronix.io.artifacts import ToolpathRecord, make_provenance
 from tattotronix.io.outputs import Outputs
@@ -33,15 +32,10 @@ log = logging.getLogger("tattotronix.stages.toolpath")
 def main(cfg: Config, out: Outputs) -> None:
     """Plan the toolpath of one artwork's mask; write the path, figure and metrics."""
     name = artwork_name(cfg.artwork)
-    src = out.require(out.path("mask", f"{name}.npz"), "mask")
-    mask = InkMask.load(src)  # refuses a corrupt file, naming it and the 'mask' stage
-    inputs = {"mask": src}
-    vector = None
-    if cfg.artwork.vector:  # the SVG's own lines, from the artwork stage
-        inputs["lines"] = out.require(out.path("artwork", f"{name}-lines.npz"), "artwork")
-        vector = VectorLines.load(inputs["lines"])
+    stored = stored_artwork(cfg, out, name)  # refuses a missing or corrupt file by name
+    mask = stored.mask
     params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
-    tp = plan_toolpath(mask, params, vector=vector)
+    tp = plan_toolpath(mask, params, vector=stored.vector)
 
     seq = tp.order.sequence
     ToolpathRecord(
@@ -54,7 +48,7 @@ def main(cfg: Config, out: Outputs) -> None:
         stroke_region=tp.drawing.region_of[seq],
         stroke_width_mm=tp.drawing.width_mm[seq],
     ).save(out.tmp_path(ToolpathRecord.path(out.data, name=name)),
-           make_provenance(cfg, inputs))
+           make_provenance(cfg, stored.inputs))
     toolpath_figure(
         tp, params.panel_size_mm, out.tmp_path(out.path("figures", name, "toolpath.png")), name
     )

@@ -44,7 +44,8 @@ joints (:meth:`TipLimit.channels`). A jerk limit (``jerk_rad_s3``) caps the spee
 path's own third derivative is large, then filters each stretch between rests with a
 moving average in time (:func:`_box_filter_law`) and repairs the samples that still
 exceed a limit (:func:`_jerk_piece`); the filtered law keeps every limit, the feed
-included, at every sample, with continuous acceleration.
+included, at every sample (and each interval's mean acceleration), with continuous
+acceleration.
 """
 
 from __future__ import annotations
@@ -59,7 +60,8 @@ from numpy.typing import ArrayLike, NDArray
 from tattotronix.errors import TattotronixError
 from tattotronix.robot.description import RobotDescription
 
-__all__ = ["JointLimits", "TimeLaw", "TipLimit", "sample_jerk", "time_parameterise"]
+__all__ = ["JointLimits", "TimeLaw", "TipLimit", "sample_jerk", "sample_rate",
+           "time_parameterise"]
 
 Array = NDArray[np.float64]
 _MAX_PASSES = 50  # forward/backward repeats before giving up (one on real paths)
@@ -176,10 +178,24 @@ class TimeLaw:
                                  f"acceleration/limit {w:.6g}")
 
 
+def sample_rate(t: Array, x: Array) -> Array:
+    """(N-1, n) ``|x_{i+1} - x_i| / (t_{i+1} - t_i)``: what a consumer differentiating the
+    samples sees (the interval's mean acceleration of ``qd``, its jerk of ``qdd``)."""
+    return np.asarray(np.abs(np.diff(x, axis=0)) / np.diff(t)[:, None])
+
+
 def sample_jerk(t: Array, qdd: Array) -> Array:
     """(N-1, n) the jerk at the samples: the change of acceleration from one sample to
     the next over their time, rad/s^3 (what the jerk limit holds)."""
-    return np.asarray(np.abs(np.diff(qdd, axis=0)) / np.diff(t)[:, None])
+    return sample_rate(t, qdd)
+
+
+def _at_points(per_interval: Array) -> Array:
+    """(N,) the larger of the two intervals meeting at each point (N-1 values given)."""
+    out = np.zeros(len(per_interval) + 1)
+    out[:-1] = per_interval
+    out[1:] = np.maximum(out[1:], per_interval)
+    return out
 
 
 def _rows(dq: Array, d2q: Array, h: Array) -> tuple[Array, Array]:
@@ -478,19 +494,14 @@ def _slowdown(t: Array, sdot: Array, sddot: Array, dq: Array, d2q: Array, feed: 
         rf = np.nan_to_num(sdot * sdot / (feed * _FEED_TOL), nan=0.0, posinf=np.inf)
     qd = dq * sdot[:, None]
     qdd = d2q * (sdot * sdot)[:, None] + dq * sddot[:, None]
-    jk = sample_jerk(t, qdd).max(axis=1) / jerk
     rv = (np.abs(qd) / limits.velocity).max(axis=1)
-    ra = (np.abs(qdd) / limits.acceleration).max(axis=1)
-    # the interval's mean acceleration (what a consumer differentiating the samples sees)
-    rm = (sample_jerk(t, qd) / limits.acceleration).max(axis=1)
-    ra[:-1] = np.maximum(ra[:-1], rm)
-    ra[1:] = np.maximum(ra[1:], rm)
+    # at the samples, and each interval's mean (what a consumer differentiating them sees)
+    ra = np.maximum((np.abs(qdd) / limits.acceleration).max(axis=1),
+                    _at_points((sample_rate(t, qd) / limits.acceleration).max(axis=1)))
     if tip is not None:
         ra = np.maximum(ra, np.where(tip.points(), tip.accel(sdot, sddot)
                                      / tip.accel_m_s2, 0.0))
-    rj = np.zeros(len(t))
-    rj[:-1] = jk
-    rj[1:] = np.maximum(rj[1:], jk)
+    rj = _at_points(sample_jerk(t, qdd).max(axis=1) / jerk)
     if rv.max() <= 1.0 and ra.max() <= 1.0 and rj.max() <= 1.0 and rf.max() <= 1.0:
         return None
     with np.errstate(divide="ignore"):
