@@ -42,13 +42,13 @@ def main(cfg: Config, out: Outputs) -> None:
     frame_hz = calibration_from_config(cfg.hardware, desc.joint_names).frame_hz
     res = study.study_from_config(cfg, chain, load_trajectory(src), frame_hz=frame_hz)
 
-    target = StudySeriesRecord.path(out.data, "actuator", name)
+    target = StudySeriesRecord.path(out.root, "actuator", name)
     series: dict[str, Any] = study.series_arrays(res)
     StudySeriesRecord(series).save(out.tmp_path(target),
                                    make_provenance(cfg, {"trajectory": src}))
     study.figure(res, out.tmp_path(out.path("figures", name, "actuator.png")), name)
     metrics = {"name": name, **study.metrics(res),
-               "series_file": target.relative_to(out.data).as_posix()}
+               "series_file": target.relative_to(out.root).as_posix()}
     out.write_json(out.path("metrics", "actuator", f"{name}.json"), metrics)
 
     d = res.declared

@@ -33,7 +33,7 @@ def main(cfg: Config, out: Outputs) -> None:
     name = artwork_name(cfg.artwork)
     desc = build_description(cfg.robot)
     traj = load_trajectory(TrajectoryRecord.require(out.data, name=name))
-    urdf = out.require(out.path("robot", f"{desc.name}.urdf"), "robot")
+    urdf = out.require(out.input("robot", f"{desc.name}.urdf"), "robot")
     run_file = RunLogRecord.path(out.data, label=run_label(name, BACKEND))
     run: dict[str, np.ndarray] = {}
     if run_file.exists():

@@ -36,7 +36,7 @@ log = logging.getLogger("tattotronix.certify")
 def main(cfg: Config, out: Outputs) -> None:
     """Certify the documents; write the counts, or fail with every problem found."""
     root = Path.cwd()
-    report = certify(root, metrics_dir=root / out.path("metrics"))
+    report = certify(root, metrics_dir=root / out.input("metrics"))
     experiment = bool(os.environ.get(EXPERIMENT_ENV))
     if not report.ok and not experiment:
         raise TattotronixError(report.format())

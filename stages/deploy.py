@@ -31,14 +31,14 @@ def main(cfg: Config, out: Outputs) -> None:
     """Compile the program of one artwork and write it with its metrics."""
     name = artwork_name(cfg.artwork)
     src = TrajectoryRecord.require(out.data, name=name)
-    require_checked(out.path("metrics", "collision", f"{name}.json"), src)
+    require_checked(out.input("metrics", "collision", f"{name}.json"), src)
     traj = load_trajectory(src)
     desc = build_description(cfg.robot)
     program, calib = build_program(cfg, desc, traj.t, traj.q, traj.qd)
     inputs = {"trajectory": src}
     if cfg.hardware.calibration_file:
         inputs["calibration"] = Path(str(cfg.hardware.calibration_file))
-    program.record().save(out.tmp_path(ServoProgramRecord.path(out.data, name=name)),
+    program.record().save(out.tmp_path(ServoProgramRecord.path(out.root, name=name)),
                           make_provenance(cfg, inputs))
     m = {"name": name, **program.metrics(calib, Chain.from_description(desc))}
     out.write_json(out.path("metrics", "deploy", f"{name}.json"), m)

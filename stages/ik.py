@@ -27,7 +27,7 @@ def main(cfg: Config, out: Outputs) -> None:
     """Solve, check against Pinocchio's FK on the generated URDF, write q and metrics."""
     name = artwork_name(cfg.artwork)
     desc = build_description(cfg.robot)
-    urdf = out.require(out.path("robot", f"{desc.name}.urdf"), "robot")
+    urdf = out.require(out.input("robot", f"{desc.name}.urdf"), "robot")
     src = ToolpathRecord.require(out.data, name=name)
     tpr = ToolpathRecord.load(src)
     path = {"uvz_mm": tpr.uvz_mm, "xyz_m": tpr.xyz_m, "kind": tpr.kind, "stroke": tpr.stroke}
@@ -48,7 +48,7 @@ def main(cfg: Config, out: Outputs) -> None:
     tcp, _ = chain.fk(res.q)
     IkRecord(joints=desc.joint_names, q=res.q, tcp=tcp, residual=res.residual,
              uvz_mm=tpr.uvz_mm, xyz_m=tpr.xyz_m, kind=tpr.kind, stroke=tpr.stroke).save(
-        out.tmp_path(IkRecord.path(out.data, name=name)),
+        out.tmp_path(IkRecord.path(out.root, name=name)),
         make_provenance(cfg, {"toolpath": src, "urdf": urdf}))
     metrics = {"name": name, **res.summary(), **cond, **check.summary(),
                "joint_range": {j: [float(res.q[:, i].min()), float(res.q[:, i].max())]

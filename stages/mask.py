@@ -25,7 +25,7 @@ log = logging.getLogger("tattotronix.stages.mask")
 def main(cfg: Config, out: Outputs) -> None:
     """Threshold (or edge-detect) the artwork raster; write the mask, preview and metrics."""
     name = artwork_name(cfg.artwork)
-    src = out.require(out.path("artwork", f"{name}.png"), "artwork")
+    src = out.require(out.input("artwork", f"{name}.png"), "artwork")
     try:
         with Image.open(src) as im:
             grey = np.asarray(im.convert("L"), dtype=np.float64)

@@ -26,8 +26,8 @@ log = logging.getLogger("tattotronix.figures")
 def main(cfg: Config, out: Outputs) -> None:
     """Draw the chain and the mass model."""
     desc = build_description(cfg.robot)
-    urdf = out.require(out.path("robot", f"{desc.name}.urdf"), "robot")
-    mass_file = out.require(out.path("metrics", "mass.json"), "mass")
+    urdf = out.require(out.input("robot", f"{desc.name}.urdf"), "robot")
+    mass_file = out.require(out.input("metrics", "mass.json"), "mass")
     try:
         report = json.loads(mass_file.read_text(encoding="utf-8"))
         report["links"]

@@ -47,7 +47,7 @@ def main(cfg: Config, out: Outputs) -> None:
         stroke_kind=tp.drawing.kinds[seq],
         stroke_region=tp.drawing.region_of[seq],
         stroke_width_mm=tp.drawing.width_mm[seq],
-    ).save(out.tmp_path(ToolpathRecord.path(out.data, name=name)),
+    ).save(out.tmp_path(ToolpathRecord.path(out.root, name=name)),
            make_provenance(cfg, stored.inputs))
     toolpath_figure(
         tp, params.panel_size_mm, out.tmp_path(out.path("figures", name, "toolpath.png")), name

@@ -29,11 +29,11 @@ def main(cfg: Config, out: Outputs) -> None:
     name = artwork_name(cfg.artwork)
     src = IkRecord.require(out.data, name=name)
     desc = build_description(cfg.robot)
-    urdf = out.require(out.path("robot", f"{desc.name}.urdf"), "robot")
+    urdf = out.require(out.input("robot", f"{desc.name}.urdf"), "robot")
     path = JointPath.from_npz(src)
     traj = trajectory_from_path(cfg, path, desc)
     prov = make_provenance(cfg, {"ik": src, "urdf": urdf})
-    traj.save_npz(out.tmp_path(TrajectoryRecord.path(out.data, name=name)), prov)
+    traj.save_npz(out.tmp_path(TrajectoryRecord.path(out.root, name=name)), prov)
     metrics = {"name": name, **traj.metrics()}
     if traj.moves:
         base = straight_travel_baseline(cfg, path, desc)

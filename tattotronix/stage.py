@@ -38,7 +38,7 @@ from omegaconf import DictConfig, OmegaConf
 from tattotronix.config.params import load_params, one_line, to_settings
 from tattotronix.config.schema import Config
 from tattotronix.errors import ConfigError, TattotronixError
-from tattotronix.io.outputs import Outputs
+from tattotronix.io.outputs import Outputs, write_root
 
 __all__ = ["StageBody", "logs_to_stderr", "run_stage"]
 
@@ -81,7 +81,8 @@ def _execute(name: str, body: StageBody, cfg: DictConfig,
         settings = to_settings(cfg)  # the one conversion: typed and frozen from here on
     except ConfigError as exc:
         raise _refuse(name, str(exc)) from None
-    out = Outputs(settings.paths.data, sweep_overrides)
+    out = Outputs(settings.paths.data, sweep_overrides,
+                  root=write_root(settings.paths.data, settings.paths.out))
     try:
         with out.transaction():
             body(settings, out)
@@ -91,6 +92,7 @@ def _execute(name: str, body: StageBody, cfg: DictConfig,
         raise _refuse(name, f"out of memory ({one_line(exc)}): nothing written; use "
                       "coarser settings (toolpath.pitch_mm, toolpath.step_mm, mask.res_mm) "
                       "or a smaller drawing") from None
+    log.info("%s", out.report(name))
     log.info("%s: done in %.2f s", name, time.perf_counter() - t0)
 
 

@@ -236,3 +236,37 @@ def test_npz_bytes_depend_only_on_the_arrays(tmp_path: Path) -> None:
     with np.load(tmp_path / "b.npz", allow_pickle=False) as z:
         assert z.files == ["q", "name", "marked"]
         assert np.array_equal(z["q"], arrays["q"]) and str(z["name"]) == "emblem"
+
+
+def test_code_version_is_the_imported_code_not_the_checkout(tmp_path: Path) -> None:
+    """Two copies of the code anywhere on disk give one version; editing a module the
+    process imported moves it, editing one it did not import (or a document) does not."""
+    from tattotronix.io.provenance import code_version
+
+    copies = []
+    for where in ("a", "b/deeper"):
+        root = tmp_path / where
+        (root / "tattotronix").mkdir(parents=True)
+        (root / "tattotronix" / "used.py").write_text("X = 1\n")
+        (root / "tattotronix" / "unused.py").write_text("Y = 1\n")
+        (root / "README.md").write_text("docs\n")
+        copies.append(root)
+    import sys
+    import types
+
+    def load(root: Path) -> str:
+        mod = types.ModuleType("_cv_used")
+        mod.__file__ = str(root / "tattotronix" / "used.py")
+        sys.modules["_cv_used"] = mod
+        try:
+            return code_version(root)
+        finally:
+            del sys.modules["_cv_used"]
+
+    a, b = (load(r) for r in copies)
+    assert a == b and a.startswith("sha256:")
+    (copies[0] / "tattotronix" / "unused.py").write_text("Y = 2\n")
+    (copies[0] / "README.md").write_text("other docs\n")
+    assert load(copies[0]) == a
+    (copies[0] / "tattotronix" / "used.py").write_text("X = 2\n")
+    assert load(copies[0]) != a

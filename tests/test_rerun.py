@@ -1,8 +1,9 @@
 """Metrics that only move when the physics moves.
 
-Two clean clones, set up alike for a small drawing and one case per study, run every
-stage that writes metrics at the same time (``dvc repro``). Every metrics file must be
-byte-identical between them: no wall time, rate or other machine noise may reach a
+Two clean clones, set up alike for a small drawing and one case per study (one of them a
+commit later, with the same code), run every stage that writes metrics at the same time
+(``dvc repro``). Every output, and so ``dvc.lock``, must be byte-identical between them
+(no absolute path, time of day or commit reaches a file), and every metrics file: no wall time, rate or other machine noise may reach a
 metrics file (those go to ``data/timings/``). Then a no-change ``dvc repro`` runs nothing
 and ``dvc metrics diff`` shows nothing.
 """
@@ -84,6 +85,10 @@ def test_every_stage_writes_the_same_metrics_twice(tmp_path: Path) -> None:
     subprocess.run(["git", "add", "-A"], cwd=a, check=True, env=ENV)
     subprocess.run(["git", "commit", "-qm", "small pipeline"], cwd=a, check=True, env=ENV)
     shutil.copytree(a, b, symlinks=True)
+    # b sits at another commit with the same code (as a clean clone of a later commit
+    # that touched only documents does): no output may record which commit it ran at
+    (b / "README.md").write_text((b / "README.md").read_text() + "\nA later edit.\n")
+    subprocess.run(["git", "commit", "-qam", "a document edit"], cwd=b, check=True, env=ENV)
     stages = _metrics_stages(a)
     assert {"ik@small", "trajectory@small", "toolpath@small", "simulate@small",
             "studies"} <= set(stages), stages
@@ -103,6 +108,10 @@ def test_every_stage_writes_the_same_metrics_twice(tmp_path: Path) -> None:
     assert not differ, f"metrics differ between two runs of the same inputs: {differ}"
     # the wall times went somewhere else
     assert (a / "data" / "timings" / "ik" / "small.json").is_file()
+    # and every output, not only the metrics, is byte-identical: dvc.lock holds the hash
+    # of each (the npz with their provenance, the figures, the animation)
+    lock_a, lock_b = ((c / "dvc.lock").read_text() for c in (a, b))
+    assert lock_a == lock_b, "dvc.lock differs between two clones of the same code"
 
     subprocess.run(["git", "add", "-A"], cwd=a, check=True, env=ENV)
     subprocess.run(["git", "commit", "-qm", "results"], cwd=a, check=True, env=ENV)

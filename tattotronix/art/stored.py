@@ -35,10 +35,10 @@ def stored_artwork(cfg: Config, out: Outputs, name: str) -> StoredArtwork:
     Raises:
         TattotronixError: a file is missing or corrupt (naming it and the stage to run).
     """
-    inputs = {"mask": out.require(out.path("mask", f"{name}.npz"), "mask")}
+    inputs = {"mask": out.require(out.input("mask", f"{name}.npz"), "mask")}
     mask = InkMask.load(inputs["mask"])
     vector = None
     if cfg.artwork.vector:  # the SVG's own lines, from the artwork stage
-        inputs["lines"] = out.require(out.path("artwork", f"{name}-lines.npz"), "artwork")
+        inputs["lines"] = out.require(out.input("artwork", f"{name}-lines.npz"), "artwork")
         vector = VectorLines.load(inputs["lines"])
     return StoredArtwork(mask, vector, inputs)

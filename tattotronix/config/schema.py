@@ -42,6 +42,8 @@ from typing import Any, TypeAlias, TypeVar, dataclass_transform, overload
 from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
+from tattotronix.io.outputs import PIPELINE_DATA
+
 __all__ = [
     "ActuatorOption",
     "ActuatorStudyConfig",
@@ -848,9 +850,10 @@ class StudyConfig:
 
 @settings
 class PathsConfig:
-    """Where outputs go. Relative paths are taken from the project root."""
+    """Where runs read and write (relative to the working folder; README, "Hand runs")."""
 
-    data: str = "data"
+    data: str = PIPELINE_DATA  # every run reads here; dvc repro writes here
+    out: str | None = None  # where a run writes; null: paths.data under DVC, runs/ by hand
 
 
 @settings

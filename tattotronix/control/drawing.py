@@ -443,7 +443,7 @@ def _score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
                        "artwork_plan": artwork_fidelity(art, plan_ink, res,
                                                         lines=plan_lw).metrics()}
 
-    run_folder = run_dir(out.data, label)
+    run_folder = run_dir(out.root, label)
     ink_img, cmp_img = _ink_images(sim_ink, plan_ink)
     dpi = 25.4 / res
     ink_img.save(out.tmp_path(run_folder / "ink.png"), format="PNG", dpi=(dpi, dpi))
@@ -455,7 +455,7 @@ def _score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
         joints=desc.joint_names, t=run.t[idx], q=run.q[idx], qd=run.qd_samples,
         tau=run.tau[idx], q_ref=run.ref.q[idx], qd_ref=run.ref.qd[idx], tip=tip[idx],
         tip_ref=tip_ref[idx], error_m=err.error_m, down=err.down, settled=err.settled,
-    ).save(out.tmp_path(RunLogRecord.path(out.data, label=label)),
+    ).save(out.tmp_path(RunLogRecord.path(out.root, label=label)),
            make_provenance(cfg, drawing.inputs))
     metrics = loop.metrics(err)
     metrics.update(_finite({

@@ -847,7 +847,7 @@ def draw_on_arm(cfg: Config, out: Outputs) -> JsonDict:
     speed = float(cfg.hardware.ramp_rad_s)
     if not (np.isfinite(speed) and speed > 0):
         raise TattotronixError(f"hardware.ramp_rad_s={speed}: give a positive speed in rad/s")
-    folder = run_dir(out.data, run_label(drawing.name, "arm"))
+    folder = run_dir(out.root, run_label(drawing.name, "arm"))
     session = ArmSession(
         name=drawing.name, program=program, calib=calib, chain=Chain.from_description(desc),
         run_dir=folder, state_file=state_file_of(cfg, out.data, folder),

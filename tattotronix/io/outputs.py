@@ -1,8 +1,15 @@
-"""Atomic stage outputs: every file a stage writes lands together, or not at all."""
+"""Atomic stage outputs: every file a stage writes lands together, or not at all.
+
+Where a run writes is not always where it reads. Every run reads its inputs under
+``paths.data``; ``dvc repro`` writes there too, but a run by hand (``python stages/...``,
+a ``-m`` sweep, a notebook) whose ``paths.data`` is the pipeline's own folder writes under
+``runs/`` beside it instead, so it never changes what DVC tracks (:func:`write_root`).
+"""
 
 from __future__ import annotations
 
 import json
+import logging
 import os
 import shutil
 from collections.abc import Iterator, Mapping
@@ -11,23 +18,65 @@ from pathlib import Path
 
 from tattotronix.errors import StageInputMissing
 
-__all__ = ["Outputs"]
+__all__ = ["HAND_RUNS", "PIPELINE_DATA", "PROJECT_ROOT", "Outputs", "write_root"]
+
+log = logging.getLogger("tattotronix")
+
+#: the project's root folder (the checkout: conf/, stages/, dvc.yaml)
+PROJECT_ROOT = Path(__file__).resolve().parents[2]
+#: the pipeline's data folder (``paths.data``'s default, ``${paths.data}`` in dvc.yaml)
+PIPELINE_DATA = "data"
+#: where a run by hand writes instead, beside the pipeline's data folder (git-ignored)
+HAND_RUNS = "runs"
 
 
 #: overrides that say where outputs go, not what they are: never part of a name
-_WHERE_KEYS = ("paths.data",)
+_WHERE_KEYS = ("paths.data", "paths.out")
+
+
+def _is_pipeline_data(data: Path) -> bool:
+    return data.resolve() == (PROJECT_ROOT / PIPELINE_DATA).resolve()
+
+
+def write_root(data: str | Path, out: str | Path | None = None) -> Path:
+    """Where a run writes, given where it reads (``paths.data``) and ``paths.out``.
+
+    * ``paths.out`` when it is set: the explicit choice (``paths.out=data`` writes into
+      the pipeline's folder on purpose, and then ``dvc status`` calls its stages stale);
+    * ``paths.data`` inside a DVC stage (``DVC_STAGE`` is set): ``dvc repro`` owns it;
+    * ``paths.data`` when it is a folder of the user's own, not the pipeline's
+      (``paths.data=/tmp/try``: a scratch pipeline);
+    * otherwise, a run by hand on the pipeline's data: ``runs/`` beside it, with the
+      same layout (``runs/metrics/runs/emblem-mujoco.json``, ``runs/figures/...``).
+    """
+    data = Path(data)
+    if out is not None and str(out) != "":
+        return Path(out)
+    if os.environ.get("DVC_STAGE") or not _is_pipeline_data(data):
+        return data
+    return data.parent / HAND_RUNS
 
 
 class Outputs:
     """Where a stage writes, with every file written atomically as one transaction.
+
+    ``data`` is where the run reads (``paths.data``); ``root`` is where it writes
+    (:func:`write_root`). :meth:`path` and the writers are under ``root``; read inputs
+    under ``data``.
 
     Files go to temporary names next to their targets; only when the stage body returns
     are they renamed into place. A stage interrupted half-way leaves nothing that looks
     finished (the temporaries are removed, and the folders made for them when empty).
     """
 
-    def __init__(self, data: str | Path, sweep_overrides: list[str] | None = None):
+    def __init__(self, data: str | Path, sweep_overrides: list[str] | None = None,
+                 root: str | Path | None = None):
+        #: where the run reads its inputs (``paths.data``)
         self.data = Path(data)
+        #: where the run writes (``root`` if given, else :func:`write_root` of ``data``)
+        self.root = Path(root) if root is not None else write_root(self.data)
+        #: every file the last commit put in place, in order
+        self.written: list[Path] = []
         #: in a Hydra multirun, this job's overrides (``key=value``); None otherwise
         self.sweep_overrides = sweep_overrides
         self._pending: list[tuple[Path, Path]] = []
@@ -45,8 +94,17 @@ class Outputs:
                 and not o.startswith("hydra")]
         return "@" + ",".join(sorted(keep)) if keep else ""
 
+    @property
+    def by_hand(self) -> bool:
+        """Whether this run writes somewhere other than where it reads."""
+        return self.root.resolve() != self.data.resolve()
+
     def path(self, *parts: str) -> Path:
-        """A path under ``paths.data``."""
+        """A path to write, under :attr:`root`."""
+        return self.root.joinpath(*parts)
+
+    def input(self, *parts: str) -> Path:
+        """A path to read, under ``paths.data``."""
         return self.data.joinpath(*parts)
 
     def require(self, path: Path, stage: str) -> Path:
@@ -97,8 +155,10 @@ class Outputs:
         """Remove the files staged for removal, then rename every staged file into place."""
         for target in self._removals:
             target.unlink(missing_ok=True)
+        self.written = []
         for tmp, target in self._pending:
             tmp.replace(target)
+            self.written.append(target)
         self._pending.clear()
         self._removals.clear()
         self._made.clear()
@@ -119,6 +179,19 @@ class Outputs:
                 pass
         self._made.clear()
 
+    def report(self, name: str) -> str:
+        """One line on where the last commit wrote (every stage ends with it)."""
+        files = [p for p in self.written if "timings" not in p.parts]
+        if not files:
+            return f"{name}: wrote nothing"
+        shown = ", ".join(_shown(p) for p in files[:4])
+        more = f" and {len(files) - 4} more under {_shown(self.root)}/" if len(files) > 4 else ""
+        line = f"{name}: wrote {shown}{more}"
+        if self.by_hand and _is_pipeline_data(self.data):
+            line += (f" (a run by hand: the pipeline's {_shown(self.data)}/ is untouched; "
+                     "paths.out=data writes there)")
+        return line
+
     @contextmanager
     def transaction(self) -> Iterator[Outputs]:
         """Commit on success, abort on any exception (including Ctrl-C)."""
@@ -128,3 +201,11 @@ class Outputs:
             self.abort()
             raise
         self.commit()
+
+
+def _shown(path: Path) -> str:
+    """A path as a person reads it: relative to the working folder when under it."""
+    try:
+        return path.resolve().relative_to(Path.cwd().resolve()).as_posix()
+    except ValueError:
+        return str(path)

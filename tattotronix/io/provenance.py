@@ -6,7 +6,7 @@ import dataclasses
 import enum
 import hashlib
 import json
-import subprocess
+import sys
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -19,26 +19,39 @@ __all__ = ["CODE_PATHS", "code_version", "config_sha256", "file_sha256", "plain_
 _ROOT = Path(__file__).resolve().parents[2]
 
 
-#: what "the code" is: a change elsewhere (dvc.lock, metrics, documents) is not a change
-#: of the code, and DVC rewrites some of those while a pipeline runs
-CODE_PATHS = ("tattotronix", "stages", "hydra_plugins", "pyproject.toml")
+#: where "the code" lives: a change elsewhere (dvc.lock, metrics, documents, tests) is
+#: not a change of the code, and DVC rewrites some of those while a pipeline runs
+CODE_PATHS = ("tattotronix", "stages", "hydra_plugins")
 
 
 def code_version(root: Path | None = None) -> str:
-    """The git commit of the code (with ``-dirty`` when a tracked file under
-    :data:`CODE_PATHS` has changes), or ``unknown`` outside a git checkout."""
-    root = root or _ROOT
-    try:
-        rev = subprocess.run(
-            ["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, check=True
-        ).stdout.strip()
-        dirty = subprocess.run(
-            ["git", "status", "--porcelain", "--untracked-files=no", "--", *CODE_PATHS],
-            cwd=root, capture_output=True, text=True, check=True,
-        ).stdout.strip()
-        return rev + ("-dirty" if dirty else "")
-    except (OSError, subprocess.CalledProcessError):
+    """The version of the code that made a result: ``sha256:`` and a hash of the path and
+    bytes of every project file this process has imported (the stage script, and the
+    modules under :data:`CODE_PATHS`).
+
+    What the code *is*, not the commit it sits in. Those files are the stage's code deps in
+    dvc.yaml (``tattotronix.devtools.codedeps`` finds the same imports), so the version
+    moves exactly when DVC reruns the stage, and two clean clones, anywhere on disk, write
+    the same bytes. A git revision would move with every commit, documents and metrics
+    included, and a run on uncommitted code could only say ``-dirty``.
+    """
+    root = (root or _ROOT).resolve()
+    dirs = tuple(root / name for name in CODE_PATHS)
+    files: set[str] = set()
+    for module in list(sys.modules.values()):
+        file = getattr(module, "__file__", None)
+        if not file:
+            continue
+        path = Path(file).resolve()
+        if path.suffix == ".py" and any(path.is_relative_to(d) for d in dirs):
+            files.add(path.relative_to(root).as_posix())
+    if not files:
         return "unknown"
+    h = hashlib.sha256()
+    for name in sorted(files):
+        h.update(name.encode("utf-8") + b"\0")
+        h.update(hashlib.sha256((root / name).read_bytes()).digest())
+    return "sha256:" + h.hexdigest()
 
 
 def file_sha256(file: str | Path) -> str:

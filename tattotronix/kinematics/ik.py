@@ -50,7 +50,7 @@ the same in both.
 Use (what the ``ik`` stage does)::
 
     chain = Chain.from_description(desc)
-    ref = PinocchioTip.from_urdf(out.path("robot", "tattotronix.urdf"), desc.tip_frame)
+    ref = PinocchioTip.from_urdf(out.input("robot", "tattotronix.urdf"), desc.tip_frame)
     res = solve_path(chain, xyz_m, dls_lambda=..., max_iter=..., tol=..., seed=...,
                      needle_axis=..., progress=bar)
     res.raise_if_failed(uvz_mm)           # IkFailure: the stage writes nothing

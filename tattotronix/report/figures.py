@@ -996,7 +996,7 @@ def draw_figures(cfg: Config, out: Outputs, name: str) -> dict[str, Path]:
 
     desc = build_description(cfg.robot)
     traj_file = TrajectoryRecord.require(out.data, name=name)
-    urdf = out.require(out.path("robot", f"{desc.name}.urdf"), "robot")
+    urdf = out.require(out.input("robot", f"{desc.name}.urdf"), "robot")
     run = RunLogRecord.load_run(out.data, name, "mujoco")
     traj = load_trajectory(traj_file)
     fig_dir = out.path("figures", name)

@@ -305,7 +305,7 @@ class ClosedLoopStudy(ABC):
         out.write_json(out.path("metrics", self.name, result.name, f"{result.case}.json"),
                        result.metrics)
         StudySeriesRecord(result.series).save(
-            out.tmp_path(StudySeriesRecord.path(out.data, self.name, result.name,
+            out.tmp_path(StudySeriesRecord.path(out.root, self.name, result.name,
                                                 result.case)),
             result.provenance)
 
@@ -352,7 +352,7 @@ class ClosedLoopStudy(ABC):
         name = artwork_name(cfg.artwork)
         first = next(iter(configs))
         folders = (out.path("metrics", self.name, name),
-                   StudySeriesRecord.path(out.data, self.name, name, first).parent)
+                   StudySeriesRecord.path(out.root, self.name, name, first).parent)
         for folder, suffix in zip(folders, (".json", ".npz"), strict=True):
             for stale in sorted(folder.glob(f"*{suffix}")) if folder.is_dir() else []:
                 if stale.stem not in configs:  # a hand run's case: not this stage's
