@@ -2,9 +2,10 @@
 
 Reads the cases under data/metrics/<study>/<name>/ of every study in
 tattotronix/studies/registry.py (the stages of those names: control, approach, resample,
-rate) and writes data/figures/<name>/<study>.png and data/metrics/studies/<name>.json
+rate) and writes data/figures/<name>/<study>.png, data/metrics/studies/<name>.json
 (what each study concludes: the best structure and bandwidth, the shortest approach that
-is enough, how many rate verdicts agree with the computed boundary).
+is enough, how many rate verdicts agree with the computed boundary) and each study's curve
+for ``dvc plots``, data/plots/<name>/studies/<study>.csv.
 """
 
 from __future__ import annotations
@@ -17,7 +18,13 @@ from tattotronix.art.artwork import artwork_name
 from tattotronix.errors import TattotronixError
 from tattotronix.io.outputs import Outputs
 from tattotronix.stage import run_stage
-from tattotronix.studies.registry import STUDIES, study_figures, study_summary
+from tattotronix.studies.registry import (
+    STUDIES,
+    format_summary,
+    study_curves,
+    study_figures,
+    study_summary,
+)
 
 log = logging.getLogger("tattotronix.studies")
 
@@ -32,7 +39,11 @@ def main(cfg: DictConfig, out: Outputs) -> None:
                                f"run the {', '.join(most)} and {last} stages first")
     summary = study_summary(out.data, name)
     out.write_json(out.path("metrics", "studies", f"{name}.json"), summary)
-    log.info("studies %s: figures %s; %s", name, ", ".join(written), summary)
+    for study, rows in study_curves(out.data, name).items():
+        out.write_csv(out.path("plots", name, "studies", f"{study}.csv"), rows)
+    log.info("studies %s: figures %s", name, ", ".join(written))
+    for study, conclusions in summary.items():
+        log.info("studies %s: %s: %s", name, study, format_summary(conclusions))
 
 
 if __name__ == "__main__":

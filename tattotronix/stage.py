@@ -26,6 +26,7 @@ A stage script is thin::
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import os
 import sys
@@ -81,6 +82,11 @@ def _execute(name: str, body: StageBody, cfg: DictConfig,
         settings = to_settings(cfg)  # the one conversion: typed and frozen from here on
     except ConfigError as exc:
         raise _refuse(name, str(exc)) from None
+    if sweep_overrides is not None and settings.draw.progress:
+        # the jobs of a -m sweep run side by side: their bars would interleave into
+        # garbage, so each job says its one line at the end instead
+        settings = dataclasses.replace(
+            settings, draw=dataclasses.replace(settings.draw, progress=False))
     out = Outputs(settings.paths.data, sweep_overrides,
                   root=write_root(settings.paths.data, settings.paths.out))
     try:

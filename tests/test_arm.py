@@ -537,3 +537,24 @@ def test_a_dry_run_keeps_its_own_state_file(tmp_path: Path) -> None:
     assert state_file_of(real, tmp_path, folder) == tmp_path / "arm" / "state.json"
     dry = compose_settings(["dry_run=true"])
     assert state_file_of(dry, tmp_path, folder) == folder / DRY_RUN_STATE
+
+
+def test_preview_prints_the_plan_and_sends_nothing(data: Path) -> None:
+    """The plan comes first, in one block; preview=true stops there with an image, even
+    without the device, and touches no log or state file."""
+    folder = data / "runs" / "small-arm"
+    before = {p: p.read_bytes() for p in folder.glob("*")} if folder.is_dir() else {}
+    r = subprocess.run(_arm_cmd(data, "preview=true", "hardware.servos.device=/dev/i2c-77"),
+                       cwd=ROOT, env=_env(), capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    said = r.stdout + r.stderr
+    block = said[said.index("plan for the arm: small"):]
+    for line in ("duration", "needle entries", "inked box", "on the panel", "start pose",
+                 "end pose"):
+        assert line in block, block
+    assert "nothing sent" in said
+    image = folder / "preview.png"
+    assert image.read_bytes().startswith(b"\x89PNG")
+    after = {p: p.read_bytes() for p in folder.glob("*") if p != image}
+    assert after == before  # no log, no state: nothing reached a bus
+    assert not (data / "arm").exists()

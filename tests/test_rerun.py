@@ -3,9 +3,9 @@
 Two clean clones, set up alike for a small drawing and one case per study (one of them a
 commit later, with the same code), run every stage that writes metrics at the same time
 (``dvc repro``). Every output, and so ``dvc.lock``, must be byte-identical between them
-(no absolute path, time of day or commit reaches a file), and every metrics file: no wall time, rate or other machine noise may reach a
-metrics file (those go to ``data/timings/``). Then a no-change ``dvc repro`` runs nothing
-and ``dvc metrics diff`` shows nothing.
+(no absolute path, time of day or commit reaches a file): no wall time, rate or other
+machine noise may reach a metrics file (those go to ``data/timings/``). Then a no-change
+``dvc repro`` runs nothing and ``dvc metrics diff`` shows nothing.
 """
 
 from __future__ import annotations

@@ -881,6 +881,7 @@ class Config:
     viewer: bool = False  # draw.py: watch the run where a display exists
     hardware: HardwareConfig = field(default_factory=HardwareConfig)
     dry_run: bool = False  # backend=arm: a recording bus instead of the I2C device
+    preview: bool = False  # backend=arm: print the plan, write preview.png, send nothing
     resume: bool = False  # backend=arm: continue a paused or failed drawing
     realtime: bool = True  # backend=arm dry run: stream at the frame rate (false: at once)
     # collision.py: report this one pose (rad) as JSON

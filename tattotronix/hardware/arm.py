@@ -27,8 +27,12 @@
   ``drawing``. ``resume=true`` treats its frame as uncertain: it takes the last pose in
   ``poses.jsonl`` as the last one commanded, lifts the needle from there first, and
   restarts :data:`RESUME_MARGIN_S` of drawing before the last frame known to be sent.
-* ``dry_run=true`` runs all of it against a recording bus, under
-  ``data/runs/<name>-arm/``, with a state file of its own there: a dry run never changes
+* Before anything reaches the bus, the plan is printed in one block
+  (:mod:`tattotronix.hardware.preview`: duration, needle entries, the inked box on the
+  panel, the start and end poses); ``preview=true`` stops there and writes
+  ``preview.png`` in the run's folder.
+* ``dry_run=true`` runs all of it against a recording bus, under the run's folder
+  (``runs/runs/<name>-arm/`` by hand), with a state file of its own there: a dry run never changes
   what the real arm's state file (``hardware.state_file``) says about the arm.
   ``realtime=false`` skips the waits.
 * Tests time their stops with the environment variable :data:`TEST_HOOK_ENV`:
@@ -61,6 +65,7 @@ from numpy.typing import NDArray
 from tattotronix.config.schema import Config, HardwareConfig
 from tattotronix.errors import TattotronixError
 from tattotronix.hardware.pca9685 import PCA9685, BusError, RecordingBus, SMBusLike, open_bus
+from tattotronix.hardware.preview import preview_of
 from tattotronix.hardware.program import ServoProgram
 from tattotronix.hardware.servos import Calibration, load_calibration
 from tattotronix.io.artifacts import run_dir, run_label
@@ -80,6 +85,8 @@ Array = NDArray[np.float64]
 RESUME_MARGIN_S = 0.5
 #: a dry run's state file, in its run folder (never the real arm's)
 DRY_RUN_STATE = "state.json"
+#: the preview image in the run's folder (``preview=true``)
+PREVIEW_IMAGE = "preview.png"
 #: the test hook (module docstring); unset in normal use
 TEST_HOOK_ENV = "TATTOTRONIX_ARM_TEST_HOOK"
 _STOP_SIGNALS = ("SIGINT", "SIGTERM", "SIGHUP")
@@ -842,14 +849,26 @@ def draw_on_arm(cfg: Config, out: Outputs) -> JsonDict:
     drawing = resolve_drawing(cfg, out.data, desc)
     check_drawing_clear(cfg, desc, drawing.t, drawing.q)
     program, calib = build_program(cfg, desc, drawing.t, drawing.q, drawing.qd)
+    folder = run_dir(out.root, run_label(drawing.name, "arm"))
+    chain = Chain.from_description(desc)
+    preview = preview_of(drawing.name, drawing.t, drawing.q, drawing.kind, program.frames,
+                         program.frame_hz, chain, np.asarray(cfg.toolpath.panel_origin),
+                         np.asarray(cfg.robot.panel.centre), np.asarray(cfg.robot.panel.size))
+    log.info("%s", preview.text())  # before anything reaches the bus
+    if cfg.preview:
+        image = preview.figure(out.tmp_path(folder / PREVIEW_IMAGE))
+        log.info("arm %s: preview only (preview=true): nothing sent, no state touched",
+                 drawing.name)
+        return {"status": "preview", "duration_s": preview.duration_s,
+                "entries": preview.entries, "box_mm": list(preview.box_mm),
+                "fits": preview.fits, "image": str(image)}
     surface = float(cfg.toolpath.panel_origin[2])
     clearance = surface + cfg.toolpath.clearance_m
     speed = float(cfg.hardware.ramp_rad_s)
     if not (np.isfinite(speed) and speed > 0):
         raise TattotronixError(f"hardware.ramp_rad_s={speed}: give a positive speed in rad/s")
-    folder = run_dir(out.root, run_label(drawing.name, "arm"))
     session = ArmSession(
-        name=drawing.name, program=program, calib=calib, chain=Chain.from_description(desc),
+        name=drawing.name, program=program, calib=calib, chain=chain,
         run_dir=folder, state_file=state_file_of(cfg, out.data, folder),
         clearance_z_m=clearance, surface_z_m=surface, feed_m_s=cfg.toolpath.feed_mark_m_s,
         ramp_rad_s=speed, ik=ik_settings(cfg.ik), dry_run=bool(cfg.dry_run),

@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import os
 import shutil
-from collections.abc import Iterator, Mapping
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -136,6 +137,17 @@ class Outputs:
         """Stage a JSON file (sorted keys, 2-space indent, trailing newline)."""
         return self.write_text(target, json.dumps(obj, indent=2, sort_keys=True) + "\n")
 
+    def write_csv(self, target: Path, rows: Sequence[Mapping[str, object]]) -> Path:
+        """Stage a CSV table (a header from the first row's keys; floats with 6 significant
+        digits, so equal numbers give equal bytes), as ``dvc plots`` reads it."""
+        if not rows:
+            raise ValueError(f"no rows for {target}")
+        columns = list(rows[0])
+        lines = [",".join(columns)]
+        for row in rows:
+            lines.append(",".join(_cell(row.get(c)) for c in columns))
+        return self.write_text(target, "\n".join(lines) + "\n")
+
     def write_timings(self, stage: str, name: str, timings: Mapping[str, float]) -> Path:
         """Stage the wall times of a run: ``timings/<stage>/<name>.json`` under the data
         folder. They vary from run to run, so they are kept apart from the metrics (which
@@ -209,3 +221,14 @@ def _shown(path: Path) -> str:
         return path.resolve().relative_to(Path.cwd().resolve()).as_posix()
     except ValueError:
         return str(path)
+
+
+def _cell(value: object) -> str:
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return f"{value:.6g}" if math.isfinite(value) else ""
+    text = str(value)
+    if any(ch in text for ch in ',"\n'):
+        return '"' + text.replace('"', '""') + '"'
+    return text

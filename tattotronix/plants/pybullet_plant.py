@@ -28,8 +28,9 @@ class PybulletPlant(Plant):
     backend = "pybullet"
 
     def __init__(self, urdf: Path, settings: PlantSettings, *, viewer: bool = False):
-        import pybullet as p
+        from tattotronix.robot.loaders import import_pybullet
 
+        p = import_pybullet()
         self._p = p
         gui = viewer and has_display()
         if viewer and not gui:

@@ -980,7 +980,8 @@ def tuning_pose(ctl: ControllerConfig, t: Array, q: Array, qd: Array) -> Array:
 
 
 def draw_figures(cfg: Config, out: Outputs, name: str) -> dict[str, Path]:
-    """Write ``figures/<name>/{joints,torques,steps,tracking}.png`` under ``paths.data``.
+    """Write ``figures/<name>/{joints,torques,steps,tracking}.png`` and the ``dvc plots``
+    tables ``plots/<name>/{tracking,joints,joint_speed}.csv`` (:func:`plot_tables`).
 
     Reads the stored trajectory (the 'trajectory' stage), the MuJoCo run log (the
     'simulate' stage) and the URDF (the 'robot' stage).
@@ -1048,8 +1049,65 @@ def draw_figures(cfg: Config, out: Outputs, name: str) -> dict[str, Path]:
                     out.tmp_path(target), name, needle_um=cfg.toolpath.needle_um)
     written["tracking"] = target
     times["tracking"] = time.perf_counter() - t0
+    plots = out.path("plots", name)
+    vel = np.array([j.velocity for j in desc.joints])
+    for file, rows in plot_tables(traj.t, traj.q, traj.qd, traj.joints, desc.lower,
+                                  desc.upper, vel, run.t, run.error_m, run.down).items():
+        written[file] = out.write_csv(plots / file, rows)
     log.info("figures %s: %s", name, ", ".join(f"{k} {v:.2f} s" for k, v in times.items()))
     return written
+
+
+#: rows of a ``dvc plots`` table along the drawing (each a time bin)
+PLOT_ROWS = 800
+
+
+def _bins(t: Array, n: int) -> list[NDArray[np.intp]]:
+    """Indices of ``t`` in ``n`` equal time bins (empty bins left out)."""
+    edges = np.linspace(t[0], t[-1], n + 1)
+    which = np.clip(np.searchsorted(edges, t, side="right") - 1, 0, n - 1)
+    order = np.argsort(which, kind="stable")
+    splits = np.flatnonzero(np.diff(which[order])) + 1
+    return [idx for idx in np.split(order, splits) if idx.size]
+
+
+def plot_tables(t: ArrayLike, q: ArrayLike, qd: ArrayLike, joints: Sequence[str],
+                lower: ArrayLike, upper: ArrayLike, velocity: ArrayLike, t_run: ArrayLike,
+                error_m: ArrayLike, down: ArrayLike,
+                rows: int = PLOT_ROWS) -> dict[str, list[dict[str, object]]]:
+    """The drawing's ``dvc plots`` tables, each at most ``rows`` time bins long, so a
+    worst value is never sampled away:
+
+    * ``tracking.csv``: the tip's worst error in each bin (µm) and whether the needle was
+      down in it;
+    * ``joints.csv``: each joint's position as a share of its range (0-100 %, the limits);
+    * ``joint_speed.csv``: each joint's fastest speed in the bin, as a share of its
+      velocity limit (100 % is the limit).
+    """
+    t, q, qd = (np.asarray(a, dtype=np.float64) for a in (t, q, qd))
+    lo, hi, vel = (np.asarray(a, dtype=np.float64) for a in (lower, upper, velocity))
+    t_run, err = np.asarray(t_run, dtype=np.float64), np.asarray(error_m, dtype=np.float64)
+    dn = np.asarray(down, dtype=bool)
+    tables: dict[str, list[dict[str, object]]] = {"tracking.csv": [], "joints.csv": [],
+                                                  "joint_speed.csv": []}
+    if t_run.size:
+        for idx in _bins(t_run, rows):
+            e = err[idx]
+            ok = np.isfinite(e)
+            tables["tracking.csv"].append({
+                "t_s": float(t_run[idx[0]]),
+                "error_um": float(e[ok].max() * 1e6) if ok.any() else None,
+                "needle_down": int(dn[idx].any())})
+    for idx in _bins(t, rows):
+        i = int(idx[len(idx) // 2])
+        pos: dict[str, object] = {"t_s": float(t[i])}
+        speed: dict[str, object] = {"t_s": float(t[idx[0]])}
+        for j, joint in enumerate(joints):
+            pos[f"{joint}_pct"] = float(100.0 * (q[i, j] - lo[j]) / (hi[j] - lo[j]))
+            speed[f"{joint}_pct"] = float(100.0 * np.abs(qd[idx, j]).max() / vel[j])
+        tables["joints.csv"].append(pos)
+        tables["joint_speed.csv"].append(speed)
+    return {k: v for k, v in tables.items() if v}
 
 
 def clearance_figure(rep: TrajectoryClearance, t: ArrayLike, kind: ArrayLike, path: Path,

@@ -265,12 +265,29 @@ class MujocoArm:
         return self.data.qfrc_bias.copy()  # at zero velocity: gravity only
 
 
+def import_pybullet() -> Any:
+    """``import pybullet``, without the "pybullet build time: ..." line its C module prints
+    on stdout at import (it lands in the middle of a progress bar, or of a stage's JSON on
+    stdout)."""
+    if "pybullet" in sys.modules:
+        return sys.modules["pybullet"]
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 1)
+            import pybullet
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+    return pybullet
+
+
 class PybulletArm:
     """PyBullet (DIRECT): the URDF with its own inertias (``URDF_USE_INERTIA_FROM_FILE``)."""
 
     def __init__(self, urdf: Path, gravity: float):
-        import pybullet as p
-
+        p = import_pybullet()
         self._p = p
         self.client = p.connect(p.DIRECT)
         p.setGravity(0, 0, -gravity, physicsClientId=self.client)

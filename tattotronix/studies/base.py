@@ -249,6 +249,26 @@ class ClosedLoopStudy(ABC):
     def summary(self, cases: Cases) -> JsonDict:
         """What the study concludes from its cases on one artwork (JSON-ready)."""
 
+    def curve(self, cases: Cases) -> list[dict[str, JsonValue]]:
+        """The study's curve for ``dvc plots`` (``data/plots/studies/<study>.csv``): one row
+        per case, in the order of its swept settings, with the case's name, its settings
+        (by their last name: ``wn``, ``rate_hz``) and the whole drawing's worst and mean
+        marking error and cycle time."""
+        rows: list[dict[str, JsonValue]] = []
+        for case, c in cases.items():
+            row: dict[str, JsonValue] = {"case": case}
+            for key in self.keys:
+                row[key.rsplit(".", 1)[-1]] = c.section("settings").get(key)
+            for key in ("marking_max_um", "marking_mean_um", "sim_s"):
+                value = c.number("whole", key)
+                row[key] = round(value, 3) if math.isfinite(value) else None
+            rows.append(row)
+
+        def order(row: dict[str, JsonValue]) -> tuple[tuple[float, str], ...]:
+            return tuple((float(v), "") if isinstance(v, int | float) else (math.inf, str(v))
+                         for v in (row[k.rsplit(".", 1)[-1]] for k in self.keys))
+        return sorted(rows, key=order)
+
     # --- the shared machinery ---------------------------------------------------------
 
     def compute_case(self, cfg: Config, data: Path, suffix: str = "") -> CaseResult:

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-from tattotronix.io.jsontypes import JsonDict
+from tattotronix.io.jsontypes import JsonDict, JsonValue
 from tattotronix.studies import approach, control, rate, resample, timelaw
 from tattotronix.studies.base import ClosedLoopStudy
 
@@ -54,3 +54,27 @@ def study_summary(data: Path, name: str) -> JsonDict:
         if cases:
             out[study.name] = study.summary(cases)
     return out
+
+
+def study_curves(data: Path, name: str) -> dict[str, list[dict[str, JsonValue]]]:
+    """Each closed-loop study's curve on ``name`` (study -> its
+    :meth:`~tattotronix.studies.base.ClosedLoopStudy.curve` rows), for ``dvc plots``."""
+    out: dict[str, list[dict[str, JsonValue]]] = {}
+    for study in STUDIES.values():
+        cases = study.load_cases(data, name)
+        if cases:
+            out[study.name] = study.curve(cases)
+    return out
+
+
+def format_summary(conclusions: JsonValue) -> str:
+    """A study's conclusions in one line a person reads: ``key value`` pairs, numbers to
+    four significant digits (the metrics file keeps them whole)."""
+    if isinstance(conclusions, dict):
+        return ", ".join(f"{k} ({format_summary(v)})" if isinstance(v, dict)
+                         else f"{k} {format_summary(v)}" for k, v in conclusions.items())
+    if isinstance(conclusions, list):
+        return "[" + ", ".join(format_summary(v) for v in conclusions) + "]"
+    if isinstance(conclusions, float):
+        return f"{conclusions:.4g}"
+    return str(conclusions)
