@@ -20,8 +20,8 @@ from tattotronix.art.stored import stored_artwork
 from tattotronix.config.schema import Config
 from tattotronix.io.artifacts import ToolpathRecord, make_provenance
 from tattotronix.io.outputs import Outputs
-from tattotronix.path.fidelity import fidelity_image, save_png
 from tattotronix.path.figure import toolpath_figure
+from tattotronix.path.inkfigure import artwork_ink_figure
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.plan import plan_toolpath
 from tattotronix.stage import run_stage
@@ -53,8 +53,10 @@ def main(cfg: Config, out: Outputs) -> None:
         tp, params.panel_size_mm, out.tmp_path(out.path("figures", name, "toolpath.png")), name
     )
     ink = tp.ink(mask, float(cfg.toolpath.needle_width_mm), float(cfg.toolpath.ink_res_mm))
-    save_png(fidelity_image(ink.art, ink.ink), float(cfg.toolpath.ink_res_mm),
-             out.tmp_path(out.path("figures", name, "artwork_ink.png")))
+    artwork_ink_figure(ink.art, ink.ink, ink.grid,
+                       out.tmp_path(out.path("figures", name, "artwork_ink.png")),
+                       f"{name}: the planned ink against the artwork (needle "
+                       f"{float(cfg.toolpath.needle_width_mm):g} mm wide)", ink.fidelity)
     out.write_json(out.path("metrics", "toolpath", f"{name}.json"),
                    {"name": name, **tp.metrics_dict(), "artwork": ink.fidelity.metrics()})
     out.write_timings("toolpath", name, {"ordering_s": tp.ordering.elapsed_s})

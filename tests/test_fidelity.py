@@ -5,6 +5,7 @@ planned ink of a real toolpath."""
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -190,3 +191,41 @@ def test_each_fill_style_trades_coverage_for_time() -> None:
     cov_r, time_r, n_r = figures["concentric"]
     # rings at the hatch's pitch: about the hatch's coverage, less than solid
     assert n_r > 0 and abs(cov_r - cov_h) < 0.2 * cov_h and cov_r < cov_s and time_r < time_s
+
+
+# --- the ink figures (tattotronix/path/inkfigure.py) -----------------------------------------
+
+def test_worst_spot_is_the_farthest_pixel_in_the_densest_cluster() -> None:
+    from tattotronix.path.inkfigure import worst_spot
+
+    where = np.zeros((60, 80), dtype=bool)
+    far = np.zeros(where.shape, dtype=np.float32)
+    where[5, 5] = where[40, 60] = where[41, 60] = where[40, 61] = True
+    far[where] = 1.0  # all equally far: the cluster wins
+    assert worst_spot(far, where, 5) in {(40, 60), (41, 60), (40, 61)}
+    far[5, 5] = 2.0  # farther: it wins alone
+    assert worst_spot(far, where, 5) == (5, 5)
+    assert worst_spot(far, np.zeros_like(where), 5) is None
+
+
+def test_ink_figures_are_written_with_or_without_a_difference(tmp_path: Path) -> None:
+    from PIL import Image
+
+    from tattotronix.path.fidelity import InkGrid
+    from tattotronix.path.inkfigure import DPI, FIGSIZE, artwork_ink_figure, plan_ink_figure
+
+    grid = InkGrid(u0_mm=-10.0, v0_mm=6.0, res_mm=0.05, shape=(240, 400))
+    plan = np.zeros(grid.shape, dtype=bool)
+    plan[100:106, 50:350] = True  # a 0.3 mm line, 15 mm long
+    sim = plan.copy()
+    sim[106, 200:203] = True  # three pixels of drift
+    art = np.zeros(grid.shape, dtype=bool)
+    art[98:108, 40:360] = True
+    for name, draw in (("plan.png", lambda p: plan_ink_figure(sim, plan, grid, p, "t")),
+                       ("same.png", lambda p: plan_ink_figure(plan, plan, grid, p, "t")),
+                       ("art.png", lambda p: artwork_ink_figure(
+                           art, sim, grid, p, "t", artwork_fidelity(art, sim, 0.05)))):
+        draw(tmp_path / name)
+        with Image.open(tmp_path / name) as im:
+            assert im.format == "PNG"
+            assert im.size == (round(FIGSIZE[0] * DPI), round(FIGSIZE[1] * DPI))

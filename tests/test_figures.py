@@ -273,3 +273,28 @@ def test_missing_inputs_name_the_stage_to_run(draw_data: Path) -> None:
     assert r.returncode == 2 and "run the 'trajectory' stage first" in r.stderr
     assert "Traceback" not in r.stderr
     assert not (draw_data / "figures").exists()
+
+
+def test_place_labels_keeps_names_off_the_markers_and_each_other() -> None:
+    """Three markers close together: each name goes beside its own marker, clear of the
+    others and of the other names."""
+    from matplotlib.transforms import Bbox
+
+    from tattotronix.plotting import place_labels, pyplot
+
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(4, 3), dpi=100)
+    xy = np.array([[1.0, 1.0], [1.05, 1.0], [1.0, 1.05]])
+    ax.plot(xy[:, 0], xy[:, 1], "o", ms=10)
+    ax.set_xlim(0.5, 1.5)
+    ax.set_ylim(0.5, 1.5)
+    labels = place_labels(ax, xy, ["first", "second", "third"], 5.0, fontsize=8)
+    renderer = fig.canvas.get_renderer()
+    boxes = [a.get_window_extent(renderer) for a in labels]
+    px = ax.transData.transform(xy)
+    markers = [Bbox.from_extents(*(p - 5 * 100 / 72), *(p + 5 * 100 / 72)) for p in px]
+    for i, b in enumerate(boxes):
+        assert not any(b.overlaps(m) for m in markers), labels[i].get_text()
+        assert not any(b.overlaps(o) for j, o in enumerate(boxes) if j != i)
+        assert ax.get_window_extent(renderer).contains(b.x0, b.y0)
+    plt.close(fig)

@@ -52,11 +52,10 @@ from tattotronix.kinematics import Chain
 from tattotronix.path.fidelity import (
     artwork_fidelity,
     artwork_on,
-    fidelity_image,
     line_runs,
     line_width,
-    save_png,
 )
+from tattotronix.path.inkfigure import artwork_ink_figure, plan_ink_figure
 from tattotronix.plants import PlantSettings, make_plant
 from tattotronix.robot.description import RobotDescription, build_description
 from tattotronix.trajectory import JointPath, load_trajectory
@@ -222,17 +221,11 @@ class _Progress:
             self.bar.close()
 
 
-def _ink_images(sim: NDArray[np.bool_], plan: NDArray[np.bool_]) -> tuple[Any, Any]:
-    """(ink, comparison) images: black ink on white; both grey-black, plan only blue,
-    simulation only red."""
+def _ink_image(sim: NDArray[np.bool_]) -> Any:
+    """The simulated ink as an image: black ink on white, one pixel per raster pixel."""
     from PIL import Image
 
-    ink = Image.fromarray(np.where(sim, 0, 255).astype(np.uint8), mode="L")
-    rgb = np.full(sim.shape + (3,), 255, dtype=np.uint8)
-    rgb[sim & plan] = (40, 40, 40)
-    rgb[plan & ~sim] = (30, 90, 230)
-    rgb[sim & ~plan] = (220, 30, 30)
-    return ink, Image.fromarray(rgb, mode="RGB")
+    return Image.fromarray(np.where(sim, 0, 255).astype(np.uint8), mode="L")
 
 
 @dataclass(frozen=True)
@@ -435,22 +428,30 @@ def _score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
     ink = compare_ink(sim_ink, plan_ink, res)
     against_art: dict[str, Any] = {"artwork": None, "artwork_plan": None}
     art = None if mask is None else artwork_on(mask, grid)
+    sim_art = None
     if art is not None:
         lines = _planned_lines(out.data, drawing)
         sim_lw, plan_lw = ((line_width(sim_ink, grid, *lines), line_width(plan_ink, grid, *lines))
                            if lines else (None, None))
-        against_art = {"artwork": artwork_fidelity(art, sim_ink, res, lines=sim_lw).metrics(),
+        sim_art = artwork_fidelity(art, sim_ink, res, lines=sim_lw)
+        against_art = {"artwork": sim_art.metrics(),
                        "artwork_plan": artwork_fidelity(art, plan_ink, res,
                                                         lines=plan_lw).metrics()}
 
     run_folder = run_dir(out.root, label)
-    ink_img, cmp_img = _ink_images(sim_ink, plan_ink)
     dpi = 25.4 / res
-    ink_img.save(out.tmp_path(run_folder / "ink.png"), format="PNG", dpi=(dpi, dpi))
-    cmp_img.save(out.tmp_path(run_folder / "ink_vs_plan.png"), format="PNG", dpi=(dpi, dpi))
-    if art is not None:
-        save_png(fidelity_image(art, sim_ink), res,
-                 out.tmp_path(run_folder / "ink_vs_artwork.png"))
+    _ink_image(sim_ink).save(out.tmp_path(run_folder / "ink.png"), format="PNG", dpi=(dpi, dpi))
+    needle = float(cfg.toolpath.needle_width_mm)
+    plan_ink_figure(
+        sim_ink, plan_ink, grid, out.tmp_path(run_folder / "ink_vs_plan.png"),
+        f"{drawing.name} on {backend}: the simulated ink against the planned ink (needle "
+        f"{needle:g} mm wide)\nIoU {ink.iou:.4f}; worst deviation {ink.max_dev_mm:.2f} mm "
+        f"({ink.max_dev_mm / res:.3g} × the {res:g} mm pixel)")
+    if art is not None and sim_art is not None:
+        artwork_ink_figure(
+            art, sim_ink, grid, out.tmp_path(run_folder / "ink_vs_artwork.png"),
+            f"{drawing.name} on {backend}: the simulated ink against the artwork (needle "
+            f"{needle:g} mm wide)", sim_art)
     RunLogRecord(
         joints=desc.joint_names, t=run.t[idx], q=run.q[idx], qd=run.qd_samples,
         tau=run.tau[idx], q_ref=run.ref.q[idx], qd_ref=run.ref.qd[idx], tip=tip[idx],

@@ -65,7 +65,9 @@ def toolpath_figure(tp: Toolpath, panel_size_mm: tuple[float, float], path: Path
     ax.set_aspect("equal")
     ax.set_xlabel("panel u (mm)")
     ax.set_ylabel("panel v (mm)")
-    ax.legend(loc="lower right", fontsize=7, framealpha=0.9)
+    # below the axes: inside, it would cover the panel's edge or the drawing
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.07), ncol=3, fontsize=8,
+              frameon=False)
     fig.tight_layout()
     fig.savefig(path, format="png")
     plt.close(fig)

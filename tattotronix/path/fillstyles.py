@@ -143,14 +143,15 @@ def fills_figure(comparison: FillComparison, zoom_mm: float, path: Path) -> None
         ax.imshow(rgb, extent=(0.0, zoom_mm, 0.0, zoom_mm), interpolation="nearest")
         f = c.ink.fidelity
         ax.set_title(f"{c.label()}\n{100 * f.coverage:.0f} % of the artwork inked, "
-                     f"{c.time_s / ref:.2f}x the time", fontsize=10)
+                     f"{c.time_s / ref:.2f} × the time", fontsize=10)
         ax.set_xlabel("mm")
         ax.set_ylabel("mm")
     ax = axes.flat[n]
     markers = "osD^vP*X"
-    for i, c in enumerate(cases):  # one marker each, named in the legend: never overlapping
-        ax.plot(c.time_s, 100 * c.ink.fidelity.coverage, markers[i % len(markers)], ms=8,
-                color=f"C{i}", label=c.label())
+    # one hollow marker each, named in the legend: two cases at the same place both show
+    for i, c in enumerate(cases):
+        ax.plot(c.time_s, 100 * c.ink.fidelity.coverage, markers[i % len(markers)], ms=9,
+                mfc="none", mew=1.8, color=f"C{i}", label=c.label())
     ax.legend(fontsize=9, loc="lower right")
     ax.set_xlabel("planned drawing time, s")
     ax.set_ylabel("share of the artwork inked, %")

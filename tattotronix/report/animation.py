@@ -220,7 +220,7 @@ class _Frames:
         arm = clip.arm_m * MM
 
         # --- left: elevation
-        ax = fig.add_axes((0.065, 0.22, 0.43, 0.66))
+        ax = fig.add_axes((0.065, 0.26, 0.43, 0.62))
         xlo = min(float(arm[..., 0].min()), centre[0] - size[0] / 2) - 25
         xhi = max(float(arm[..., 0].max()), centre[0] + size[0] / 2) + 25
         zhi = float(arm[..., 2].max()) + 25
@@ -233,18 +233,18 @@ class _Frames:
                                edgecolor="none", hatch="//", zorder=0))
         ax.add_patch(Rectangle((centre[0] - size[0] / 2, centre[2] - size[2] / 2), size[0],
                                size[2], facecolor="#d9c7a5", edgecolor="#8a7f70", zorder=1))
-        ax.set_xlabel("arm x (mm)", fontsize=9)
-        ax.set_ylabel("arm z (mm)", fontsize=9)
-        ax.tick_params(labelsize=8)
+        ax.set_xlabel("arm x (mm)", fontsize=10, labelpad=2)
+        ax.set_ylabel("arm z (mm)", fontsize=10)
+        ax.tick_params(labelsize=9)
         ax.grid(alpha=0.3)
-        ax.set_title("the arm, elevation (x-z)", fontsize=9)
+        ax.set_title("the arm, elevation (x-z)", fontsize=10)
         (self.arm_line,) = ax.plot([], [], "-o", color="#212529", lw=2.6, ms=4.5,
                                    mfc="white", mec="#212529", animated=True, zorder=3)
         (self.arm_tip,) = ax.plot([], [], "v", ms=8, animated=True, zorder=4)
         self.ax_arm = ax
 
         # --- right: the panel face-on, panel mm about the panel origin
-        ap = fig.add_axes((0.555, 0.22, 0.43, 0.66))
+        ap = fig.add_axes((0.555, 0.26, 0.43, 0.62))
         u0, u1 = centre[0] - size[0] / 2 - origin[0], centre[0] + size[0] / 2 - origin[0]
         v0, v1 = centre[1] - size[1] / 2 - origin[1], centre[1] + size[1] / 2 - origin[1]
         ap.add_patch(Rectangle((u0, v0), u1 - u0, v1 - v0, facecolor="#f8f1e5",
@@ -256,10 +256,10 @@ class _Frames:
         ap.set_ylim(v0 - 3, v1 + 3)
         ap.set_aspect("equal", adjustable="box")
         ap.set_anchor("E")
-        ap.set_xlabel("panel u (mm)", fontsize=9)
-        ap.set_ylabel("panel v (mm)", fontsize=9)
-        ap.tick_params(labelsize=8)
-        ap.set_title("the panel, face-on: ink so far (plan in light grey)", fontsize=9)
+        ap.set_xlabel("panel u (mm)", fontsize=10, labelpad=2)
+        ap.set_ylabel("panel v (mm)", fontsize=10)
+        ap.tick_params(labelsize=9)
+        ap.set_title("the panel, face-on: ink so far (plan in light grey)", fontsize=10)
         self.ax_panel = ap
         canvas.draw()  # layout: the ink raster is the panel axes' pixels on screen
         x0, y0, x1, y1 = (int(round(v)) for v in ap.get_window_extent().extents)
@@ -270,21 +270,21 @@ class _Frames:
         (self.pen,) = ap.plot([], [], "o", ms=7, animated=True, zorder=3)
 
         # --- the time bar, with the marking stretches
-        at = fig.add_axes((0.065, 0.1, 0.91, 0.03))
+        at = fig.add_axes((0.065, 0.145, 0.91, 0.03))
         marking = (clip.state == MARK).astype(float)
         at.fill_between(clip.t, 0, 1, where=marking > 0, step="post", color="#ffd8a8", lw=0)
         at.set_xlim(float(clip.t[0]), float(clip.t[-1]))
         at.set_ylim(0, 1)
         at.set_yticks([])
-        at.tick_params(labelsize=7, pad=1)
-        at.set_xlabel("drawing time (s); orange: marking", fontsize=7, labelpad=1)
+        at.tick_params(labelsize=9, pad=1)
+        at.set_xlabel("drawing time (s); orange: marking", fontsize=9.5, labelpad=1)
         (self.cursor,) = at.plot([], [], color="black", lw=2.0, animated=True)
         self.ax_time = at
 
-        fig.text(0.5, 0.012, f"rendered from {clip.source}; not a screen capture. "
-                 f"Time x{clip.compression:.1f} ({clip.duration_s:.0f} s in "
-                 f"{clip.video_s:.0f} s)", ha="center", va="bottom", fontsize=7.5,
-                 color="#495057")
+        fig.text(0.5, 0.008, f"rendered from {clip.source};\nnot a screen capture. "
+                 f"Time ×{clip.compression:.1f} ({clip.duration_s:.0f} s in "
+                 f"{clip.video_s:.0f} s)", ha="center", va="bottom", fontsize=10.5,
+                 linespacing=1.25, color="#343a40")
         canvas.draw()
         self.background = canvas.copy_from_bbox(fig.bbox)
         self._title_setup(fig, size_px)

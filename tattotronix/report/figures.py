@@ -12,7 +12,7 @@ shared :class:`~tattotronix.control.controller.Controller` on the ``model`` plan
 stored trajectory, the MuJoCo run log and the URDF, and writes
 ``<data>/figures/<name>/{joints,torques,steps,tracking}.png``.
 
-Units: SI inside (m, rad, s, N m, kg); figure axes in mm, um, ms or g where they say so.
+Units: SI inside (m, rad, s, N m, kg); figure axes in mm, µm, ms or g where they say so.
 """
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ from tattotronix.io.artifacts import RunLogRecord, TrajectoryRecord
 from tattotronix.io.jsontypes import JsonDict, JsonValue
 from tattotronix.io.outputs import Outputs
 from tattotronix.path.kinds import MARK
-from tattotronix.plotting import legend_proxy, pyplot
+from tattotronix.plotting import legend_proxy, place_labels, pyplot
 from tattotronix.robot.description import RobotDescription
 
 if TYPE_CHECKING:
@@ -275,22 +275,28 @@ def chain_figure(poses: ArmPoses, labels: Sequence[str], panel_centre_m: ArrayLi
     # triads, joint axes and names at the first configuration
     o = poses.origins_m[0] * MM
     rot = poses.rotations[0]
+    # what the names must not cover, per view: the chains, the triads, the joint axes
+    drawn: list[list[Array]] = [[poses.origins_m[k][chain][:, [i, j]] * MM
+                                 for k in range(len(poses.q))] for _, (i, j), _ in views]
     shown: list[Array] = []
     for f in range(len(poses.names)):
         if any(np.linalg.norm(o[f] - p) < 1e-6 for p in shown):
             continue  # a frame at the same place as one drawn (tattoo_pen_link at tool0)
         shown.append(o[f])
-        for ax, (i, j), _ in views:
+        for v, (ax, (i, j), _) in enumerate(views):
             for a, c in enumerate(("#e03131", "#2f9e44", "#1c7ed6")):
                 d = rot[f][:, a] * triad_mm
                 if math.hypot(d[i], d[j]) > 0.5:
                     ax.annotate("", xy=(o[f, i] + d[i], o[f, j] + d[j]), xytext=(o[f, i], o[f, j]),
                                 arrowprops={"arrowstyle": "-|>", "color": c, "lw": 1.1,
                                             "mutation_scale": 7}, zorder=5)
+                    drawn[v].append(np.array([[o[f, i], o[f, j]],
+                                              [o[f, i] + d[i], o[f, j] + d[j]]]))
     axes_w = poses.world_axes(0)
-    for jn, (jf, a) in enumerate(zip(poses.joint_frames, axes_w, strict=True)):
+    joint_of = {int(jf): jn for jn, jf in enumerate(poses.joint_frames)}
+    for jf, a in zip(poses.joint_frames, axes_w, strict=True):
         p = o[jf]
-        for ax, (i, j), _ in views:
+        for v, (ax, (i, j), _) in enumerate(views):
             d = a * 28.0
             if math.hypot(d[i], d[j]) < 0.3 * 28.0:  # the axis points out of the page
                 ax.plot(p[i], p[j], "o", ms=9, mfc="none", mec="#862e9c", mew=1.2, zorder=6)
@@ -298,15 +304,7 @@ def chain_figure(poses: ArmPoses, labels: Sequence[str], panel_centre_m: ArrayLi
             else:
                 ax.plot([p[i] - d[i], p[i] + d[i]], [p[j] - d[j], p[j] + d[j]], "-.",
                         color="#862e9c", lw=1.1, zorder=2)
-            ax.annotate(f"j{jn + 1}", (p[i], p[j]), xytext=(-16 if jn % 2 == 0 else 6, -13),
-                        textcoords="offset points", fontsize=8, color="#862e9c", weight="bold")
-    # frame names (elevation only; to the left, staggered)
-    offsets = {"tool_mount_link": (-30, -20), "tool0": (-6, 9), "tattoo_tcp": (8, -12)}
-    for f, name in enumerate(poses.names):
-        if name == "tattoo_pen_link":
-            continue
-        ax_el.annotate(name, (o[f, 0], o[f, 2]), xytext=offsets.get(name, (8, -9)),
-                       textcoords="offset points", fontsize=7, color="#343a40")
+                drawn[v].append(np.array([[p[i] - d[i], p[j] - d[j]], [p[i] + d[i], p[j] + d[j]]]))
     # bench top and panel
     allo = poses.origins_m.reshape(-1, 3) * MM
     xlo = min(float(allo[:, 0].min()), centre[0] - size[0] / 2) - 40
@@ -351,6 +349,25 @@ def chain_figure(poses: ArmPoses, labels: Sequence[str], panel_centre_m: ArrayLi
     fig.suptitle(f"{title}\n(frame triads, names and joint axes at the first pose)",
                  fontsize=11)
     fig.subplots_adjust(left=0.05, right=0.98, top=0.91, bottom=0.08)
+    # names where they cover least: in elevation every frame (a joint's frame with the
+    # joint: "j2 upper_arm_link", in the joints' purple); in plan the joints
+    frames = [f for f, name in enumerate(poses.names) if name != "tattoo_pen_link"]
+    drawn[0].append(np.array([[xlo, 0.0], [xhi, 0.0]]))  # the bench top
+    for v, (ax, (i, j), _) in enumerate(views):
+        picked = frames if v == 0 else [int(jf) for jf in poses.joint_frames]
+        taken: list[Any] = []
+        for purple in (True, False):
+            these = [f for f in picked if (f in joint_of) == purple]
+            if not these:
+                continue
+            texts = [f"j{joint_of[f] + 1}" + (f" {poses.names[f]}" if v == 0 else "")
+                     if purple else poses.names[f] for f in these]
+            others = [(float(o[f, i]), float(o[f, j]), 5.0) for f in picked if f not in these]
+            place_labels(ax, o[these][:, [i, j]], texts, 5.0, avoid=drawn[v], marks=others,
+                         taken=taken, fontsize=8 if purple else 7,
+                         color="#862e9c" if purple else "#343a40",
+                         weight="bold" if purple and v == 1 else "normal", zorder=7,
+                         bbox={"fc": "white", "ec": "none", "alpha": 0.75, "pad": 0.4})
     return _save(plt, fig, path)
 
 
@@ -389,7 +406,7 @@ def joints_figure(t: ArrayLike, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, kin
     z0, z1 = zoom_s[0], min(zoom_s[0] + zoom_s[1], float(tt[-1]))
     plt, fig = _new_figure("joints")
     gs = fig.add_gridspec(3, 2, width_ratios=(2.4, 1.0), hspace=0.1, wspace=0.13)
-    labels = ("angle q (rad)", "rate qd (rad/s)", "acceleration qdd (rad/s^2)")
+    labels = ("angle q (rad)", "rate qd (rad/s)", "acceleration qdd (rad/s²)")
     zsel = (tt >= z0) & (tt <= z1)
     axes = np.empty((3, 2), dtype=object)
     for r in range(3):
@@ -433,7 +450,7 @@ def joints_figure(t: ArrayLike, q: ArrayLike, qd: ArrayLike, qdd: ArrayLike, kin
     peak_a = np.abs(series[2]).max(axis=0)
     fig.suptitle(f"{title + ': ' if title else ''}joint trajectories ({len(tt)} points, "
                  f"{tt[-1]:.1f} s)   peak rate {peak_v.max():.2f} rad/s "
-                 f"(limit {vl.max():g}), peak acceleration {peak_a.max():.2f} rad/s^2 "
+                 f"(limit {vl.max():g}), peak acceleration {peak_a.max():.2f} rad/s² "
                  f"(limit {accel_limit:g})", fontsize=11)
     fig.subplots_adjust(left=0.06, right=0.985, top=0.9, bottom=0.06)
     return _save(plt, fig, path)
@@ -477,7 +494,7 @@ def torques_figure(t_plan: ArrayLike, gravity_nm: ArrayLike, t_run: ArrayLike,
         ax.plot(tp[ig], g[ig, j], "o", ms=7, mfc="none", mec="black", mew=1.2)
         ax.plot(tr[it], tau[it, j], "v", ms=7, color="black")
         ax.text(1.003, 0.5, f"peak |G| {abs(g[ig, j]):.4f} N m\n  at {tp[ig]:.1f} s\n"
-                f"peak |tau| {abs(tau[it, j]):.4f} N m\n  at {tr[it]:.1f} s",
+                f"peak |τ| {abs(tau[it, j]):.4f} N m\n  at {tr[it]:.1f} s",
                 transform=ax.transAxes, fontsize=7.5, va="center", ha="left",
                 bbox={"boxstyle": "round", "fc": "white", "ec": "#adb5bd"})
         lo = float(min(g[:, j].min(), tau[:, j].min()))
@@ -496,15 +513,16 @@ def torques_figure(t_plan: ArrayLike, gravity_nm: ArrayLike, t_run: ArrayLike,
                legend_proxy("", "#1971c2", f"applied torque in the simulated run ({backend}; "
                                            "joint colour)", ls="-", lw=1),
                legend_proxy("o", "none", "peak |G|", mec="black"),
-               legend_proxy("v", "black", "peak |tau|"),
+               legend_proxy("v", "black", "peak |τ|"),
                legend_proxy("s", MARK_SHADE, "needle marking", ms=10)]
     fig.legend(handles=handles, loc="upper center", ncol=len(handles), fontsize=8,
                bbox_to_anchor=(0.47, 0.955), frameon=False)
     lim = f"; torque limit {torque_limit_nm:g} N m, far off scale" if torque_limit_nm else ""
     fig.suptitle(f"{title + ': ' if title else ''}gravity and applied joint torques along the "
-                 f"drawing (peak |tau| {np.abs(tau).max():.3f} N m, peak |G| "
+                 f"drawing (peak |τ| {np.abs(tau).max():.3f} N m, peak |G| "
                  f"{np.abs(g).max():.3f} N m{lim})", fontsize=11)
-    fig.subplots_adjust(left=0.07, right=0.87, top=0.91, bottom=0.06, hspace=0.1)
+    fig.subplots_adjust(left=0.085, right=0.87, top=0.91, bottom=0.06, hspace=0.1)
+    fig.align_ylabels(axes)  # one column of joint names, clear of the widest tick labels
     return _save(plt, fig, path)
 
 
@@ -732,7 +750,7 @@ def steps_figure(sets: Sequence[StepSet], path: Path, title: str = "") -> Path:
                      fontsize=9)
         ax.grid(alpha=0.3)
         if r == len(wns) - 1:
-            ax.set_xlabel("time after the step x wn (1 = 1/wn)")
+            ax.set_xlabel("time after the step × wn (1 = 1/wn)")
         else:
             ax.tick_params(labelbottom=False)
         if c == 0:
@@ -793,13 +811,13 @@ def tracking_figure(t: ArrayLike, error_m: ArrayLike, down: ArrayLike, settled: 
             (st, "#1971c2", f"marking, settled ({int(st.sum())})", 1.5)):
         ax.scatter(tt[sel], e[sel], s=size, c=colour, lw=0, label=label, rasterized=True)
     ax.axhline(needle_um, color="#c92a2a", ls="--", lw=1.1,
-               label=f"needle width {needle_um:g} um")
+               label=f"needle width {needle_um:g} µm")
     ax.axhline(target_um, color="#2b8a3e", ls="--", lw=1.1,
-               label=f"target: worst marking < {target_um:g} um")
+               label=f"target: worst marking < {target_um:g} µm")
     if dn.any():
         iw = int(np.flatnonzero(dn)[np.argmax(e[dn])])
         ax.plot(tt[iw], e[iw], "*", ms=16, mfc="#c92a2a", mec="black", mew=0.7, zorder=6)
-        ax.annotate(f"worst marking: {e[iw]:.1f} um at {tt[iw]:.2f} s"
+        ax.annotate(f"worst marking: {e[iw]:.1f} µm at {tt[iw]:.2f} s"
                     f"{' (settled)' if st[iw] else ' (settling)'}", (tt[iw], e[iw]),
                     xytext=(-30, 18), textcoords="offset points", ha="right", fontsize=8,
                     bbox={"boxstyle": "round", "fc": "white", "ec": "#adb5bd"},
@@ -808,7 +826,7 @@ def tracking_figure(t: ArrayLike, error_m: ArrayLike, down: ArrayLike, settled: 
     ax.set_ylim(ERROR_FLOOR_UM * 0.8, max(float(e.max()), needle_um) * 2.5)
     ax.set_xlim(float(tt[0]), float(tt[-1]))
     ax.set_xlabel("time (s)")
-    ax.set_ylabel(f"tip error |p - p_ref| (um)\n(below {ERROR_FLOOR_UM:g} um drawn at it)",
+    ax.set_ylabel(f"tip error |p - p_ref| (µm)\n(below {ERROR_FLOOR_UM:g} µm drawn at it)",
                   fontsize=9)
     ax.grid(alpha=0.3, which="both", lw=0.4)
     ax.legend(loc="lower left", bbox_to_anchor=(0.0, 1.0), fontsize=7.5, ncol=5,
@@ -821,12 +839,12 @@ def tracking_figure(t: ArrayLike, error_m: ArrayLike, down: ArrayLike, settled: 
         bins = np.geomspace(ERROR_FLOOR_UM, max(float(es.max()), ERROR_FLOOR_UM) * 1.001, 60)
         ah.hist(es[es >= ERROR_FLOOR_UM], bins=bins, color="#1971c2", alpha=0.8)
         ah.set_title(f"histogram of the settled marking error ({below} samples, "
-                     f"{100.0 * below / len(es):.1f} %, below {ERROR_FLOOR_UM:g} um: not "
+                     f"{100.0 * below / len(es):.1f} %, below {ERROR_FLOOR_UM:g} µm: not "
                      "binned)", fontsize=9)
         for v, ls, lab in ((float(es.mean()), "-", "mean"),
                            (float(np.percentile(es, 99)), "--", "99th percentile"),
                            (float(es.max()), ":", "max")):
-            ah.axvline(v, color="black", ls=ls, lw=1.0, label=f"{lab} {v:.2f} um")
+            ah.axvline(v, color="black", ls=ls, lw=1.0, label=f"{lab} {v:.2f} µm")
         ah.set_xscale("log")
         ah.legend(fontsize=7.5, loc="upper left")
         for sel, colour, lab, ls in ((travel, "#adb5bd", "travel and approach", "-"),
@@ -835,7 +853,7 @@ def tracking_figure(t: ArrayLike, error_m: ArrayLike, down: ArrayLike, settled: 
             srt = np.sort(e[sel])
             if len(srt):
                 ac.plot(srt, np.arange(1, len(srt) + 1) / len(srt) * 100.0, color=colour,
-                        lw=1.6, ls=ls, label=f"{lab} (max {srt[-1]:.1f} um)")
+                        lw=1.6, ls=ls, label=f"{lab} (max {srt[-1]:.1f} µm)")
         ac.axvline(target_um, color="#2b8a3e", ls="--", lw=1.0)
         ac.axvline(needle_um, color="#c92a2a", ls="--", lw=1.0)
         ac.set_xscale("log")
@@ -844,18 +862,18 @@ def tracking_figure(t: ArrayLike, error_m: ArrayLike, down: ArrayLike, settled: 
         for a in (ah, ac):
             a.text(0.5, 0.5, "no settled marking samples", ha="center", va="center",
                    transform=a.transAxes)
-    ah.set_xlabel("settled marking error (um, log bins)")
+    ah.set_xlabel("settled marking error (µm, log bins)")
     ah.set_ylabel("samples")
     if not len(es):
         ah.set_title("histogram of the settled marking error", fontsize=9)
-    ac.set_xlabel("tip error (um)")
+    ac.set_xlabel("tip error (µm)")
     ac.set_ylabel("share of samples at or below (%)")
     ac.set_title("cumulative distribution", fontsize=9)
     ac.set_ylim(0, 101)
     for a in (ah, ac):
         a.grid(alpha=0.3, which="both", lw=0.4)
-    stats = (f"settled mean {es.mean():.2f} um, max {es.max():.1f} um; " if len(es) else "")
-    stats += f"marking max {e_raw[dn].max():.1f} um" if dn.any() else "no marking"
+    stats = (f"settled mean {es.mean():.2f} µm, max {es.max():.1f} µm; " if len(es) else "")
+    stats += f"marking max {e_raw[dn].max():.1f} µm" if dn.any() else "no marking"
     fig.suptitle(f"{title + ': ' if title else ''}tracking along the whole drawing "
                  f"(simulated, {backend}; {len(tt)} samples, {tt[-1] - tt[0]:.0f} s): "
                  f"{stats}", fontsize=11)
@@ -921,9 +939,6 @@ def mass_figure(report: Mapping[str, JsonValue], path: Path, poses: ArmPoses | N
             com_w[k] = c
             ac.scatter(c[0], c[2], s=masses[k] * 4.0, color=_colour(k), alpha=0.75,
                        edgecolor="black", lw=0.6, zorder=3)
-            ac.annotate(f"{n.replace('_link', '')}\n{masses[k]:.1f} g", (c[0], c[2]),
-                        xytext=(10, -4 if k % 2 else 8), textcoords="offset points",
-                        fontsize=7.5)
         # the moving links: all but the base (the first frame of the chain)
         moving = np.isfinite(com_w[:, 0]) & (np.array(names) != poses.names[chain[0]])
         m_moving = float(masses[moving].sum())
@@ -942,6 +957,16 @@ def mass_figure(report: Mapping[str, JsonValue], path: Path, poses: ArmPoses | N
         ac.legend(fontsize=7.5, loc="lower right")
         ac.set_title("link centres of mass at the zero pose (elevation; marker area ~ mass)",
                      fontsize=9)
+        fig.subplots_adjust(left=0.06, right=0.98, top=0.86, bottom=0.14)
+        shown = np.isfinite(com_w[:, 0])
+        # beside each marker (radius sqrt(area / pi), points), clear of the arm and the
+        # other markers (the CoM cross among them)
+        place_labels(ac, com_w[shown][:, [0, 2]],
+                     [f"{n.replace('_link', '')}\n{m:.1f} g"
+                      for n, m in zip(np.array(names)[shown], masses[shown], strict=True)],
+                     np.sqrt(masses[shown] * 4.0 / math.pi), avoid=[o[chain][:, [0, 2]]],
+                     marks=[(float(cg[0]), float(cg[2]), 7.0)] if m_moving > 0 else [],
+                     fontsize=7.5, zorder=5)
     else:
         com = np.array([links[n]["com_mm"] for n in names], float)
         w = 0.27
@@ -1126,7 +1151,7 @@ def clearance_figure(rep: TrajectoryClearance, t: ArrayLike, kind: ArrayLike, pa
     tt, ser = np.asarray(t), np.asarray(rep.series_m) * MM
     least = np.asarray(rep.min_clearance_m) * MM
     order = np.argsort(least)
-    ax = fig.add_axes((0.06, 0.1, 0.56, 0.8))
+    ax = fig.add_axes((0.06, 0.27, 0.56, 0.63))
     _shade(ax, tt, _marking(kind), "marking")
     for i, p in enumerate(order[:pairs]):
         ax.plot(tt, np.maximum(ser[:, p], 1e-2), lw=0.9, color=_colour(i),
@@ -1136,7 +1161,9 @@ def clearance_figure(rep: TrajectoryClearance, t: ArrayLike, kind: ArrayLike, pa
     ax.set_yscale("log")
     ax.set_xlabel("time (s)")
     ax.set_ylabel("clearance (mm)")
-    ax.legend(loc="upper right", fontsize=8)
+    # below the axes: inside, it would cover the curves
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=2, fontsize=8,
+              frameon=False)
     ax.set_title("closest pairs along the drawing")
     bx = fig.add_axes((0.74, 0.1, 0.24, 0.8))
     y = np.arange(len(order))

@@ -736,7 +736,7 @@ def figure(result: ActuatorStudy, path: Path, title: str = "") -> None:
         c = _COLOURS[k % len(_COLOURS)]
         ax.plot(t, result.series_lateral_worst_mm(o), "-", color=c, lw=0.8, alpha=0.9,
                 label=f"{o.name}: worst {o.lateral_worst:.2f} mm = "
-                      f"{result.times_line(o):.1f} x line")
+                      f"{result.times_line(o):.1f} × line")
     ax.axhline(result.line_mm, color="black", lw=1.6, ls="--",
                label=f"ink line width {result.line_mm:g} mm")
     top = max(max(o.lateral_worst for o in result.options), result.line_mm)
@@ -744,7 +744,7 @@ def figure(result: ActuatorStudy, path: Path, title: str = "") -> None:
     ax.set_xlabel("time along the drawing (s)")
     ax.set_ylabel("worst in-panel tip error at the pose (mm)")
     ax.set_title("worst lateral error along the drawing, each joint anywhere in its rest "
-                 f"band\n(every {result.series_every}th pose; max over the 2^{n} corners of "
+                 f"band\n(every {result.series_every}th pose; max over the $2^{{{n}}}$ corners of "
                  "the joint box)", fontsize=9)
     ax.legend(fontsize=7.5, loc="upper left", ncol=1, framealpha=0.95)
     ax.grid(alpha=0.3)
@@ -757,16 +757,16 @@ def figure(result: ActuatorStudy, path: Path, title: str = "") -> None:
                color=_COLOURS[k % len(_COLOURS)], label=o.name)
     req = result.required_deg
     ax.axhline(req, color="black", lw=1.6, ls="--",
-               label=f"every joint must hold +/-{req:.4f} deg to stay in the "
+               label=f"every joint must hold ±{req:.4f}° to stay in the "
                      f"{result.line_mm:g} mm line\n({result.play_lateral_mm_per_deg:.2f} mm "
-                     "per deg of play at every joint, worst way round)")
+                     "per degree of play at every joint, worst way round)")
     ax.set_yscale("log")
     ax.set_ylim(req / 2.0, max(float(o.rest_deg.max()) for o in result.options) * 6.0)
     ax.set_xticks(x, list(joints), fontsize=8)
     ax.set_ylabel("rest band, either way (deg, log)")
     ax.set_title("rest band of each joint per option\n(step + dead band) / 2 / "
-                 f"{result.declared.us_per_deg:g} us/deg; bus servos "
-                 f"{result.declared.bus_step_deg:.4f} deg", fontsize=9)
+                 f"{result.declared.us_per_deg:g} µs/°; bus servos "
+                 f"{result.declared.bus_step_deg:.4f}°", fontsize=9)
     ax.legend(fontsize=7.5, loc="upper left", framealpha=0.95)
     ax.grid(axis="y", alpha=0.3, which="both")
 

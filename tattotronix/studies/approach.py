@@ -39,7 +39,7 @@ class ApproachStudy(ClosedLoopStudy):
         return f"{float(cfg.toolpath.approach_mm)}mm"
 
     def figure(self, cases: Cases, path: Path, title: str = "") -> None:
-        """Worst entry error, worst marking and settled mean (um), and the cycle time (s),
+        """Worst entry error, worst marking and settled mean (µm), and the cycle time (s),
         against the approach length."""
         plt = pyplot()
         rows = sorted_by(cases, "toolpath.approach_mm")
@@ -52,12 +52,12 @@ class ApproachStudy(ClosedLoopStudy):
         ax.plot(a, [window_value(c, "whole", "settled_mean_um") for _, c in rows], "^-",
                 color="#3b6fb6", label="settled mean")
         log_axes_with_twin(ax, "approach length (last stretch of each plunge at the "
-                           "marking feed), mm", "tip error, um", a,
+                           "marking feed), mm", "tip error, µm", a,
                            [c.number("drawing", "duration_s") for _, c in rows],
-                           "cycle time", "cycle time, s", "upper center")
+                           "cycle time", "cycle time, s")
         ctl = next(iter(cases.values())).section("controller") if cases else {}
         finish_figure(fig, path, "Approach", title,
-                      f"the original's §5.7; whole drawing, {ctl.get('structure', '?')} at wn "
+                      f"whole drawing, {ctl.get('structure', '?')} at wn "
                       f"{ctl.get('wn', '?')} rad/s")
 
     def summary(self, cases: Cases) -> JsonDict:

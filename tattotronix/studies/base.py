@@ -59,7 +59,7 @@ from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, ClassVar, Literal
+from typing import TYPE_CHECKING, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -87,8 +87,7 @@ if TYPE_CHECKING:
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-__all__ = ["VERDICT_COLOUR", "WINDOWS", "CaseResult", "Cases", "ClosedLoopStudy", "LegendLoc",
-           "StudyCase",
+__all__ = ["VERDICT_COLOUR", "WINDOWS", "CaseResult", "Cases", "ClosedLoopStudy", "StudyCase",
            "finish_figure", "int_label", "load_cases", "log_axes_with_twin", "setting",
            "sorted_by", "window_value"]
 
@@ -536,9 +535,6 @@ def _fmt(v: object) -> str:
 WINDOWS = (("whole", "whole drawing", "-"), ("busiest", "busiest window", "--"))
 #: a run's verdict -> its colour
 VERDICT_COLOUR = {"ok": "#2a9d55", "saturated": "#e08a1e", "diverged": "#c0392b"}
-#: where a legend goes on the axes (matplotlib's ``loc``)
-LegendLoc = Literal["best", "upper right", "upper left", "lower left", "lower right", "right",
-                    "center left", "center right", "lower center", "upper center", "center"]
 
 
 def window_value(case: StudyCase, window: str, key: str) -> float:
@@ -551,20 +547,29 @@ def sorted_by(cases: Cases, key: str) -> list[tuple[float, StudyCase]]:
     return sorted(((c.setting(key), c) for c in cases.values()), key=lambda x: x[0])
 
 
-def finish_figure(fig: Figure, path: Path, study: str, title: str, about: str) -> None:
+def finish_figure(fig: Figure, path: Path, study: str, title: str, about: str,
+                  bottom: float = 0.0, then: Callable[[], object] | None = None) -> None:
     """Title a study figure ("<Study> study: <title> (<about>)"), lay it out, write it to
-    ``path`` and close it."""
+    ``path`` and close it.
+
+    Args:
+        bottom: the share of the height kept free below the axes (a figure legend).
+        then: run once the layout is final, before the figure is written (labels placed
+            where they cover least need the final layout).
+    """
     plt = pyplot()
     fig.suptitle(f"{study} study{': ' + title if title else ''} ({about})")
-    fig.tight_layout()
+    fig.tight_layout(rect=(0.0, bottom, 1.0, 1.0))
+    if then is not None:
+        then()
     fig.savefig(path, dpi=130)
     plt.close(fig)
 
 
 def log_axes_with_twin(ax: Axes, xlabel: str, ylabel: str, x: list[float],
-                       twin_y: list[float], twin_label: str, twin_ylabel: str,
-                       legend_loc: LegendLoc) -> None:
-    """Log-scale errors on ``ax``, a dotted cost curve on a twin axis, one legend."""
+                       twin_y: list[float], twin_label: str, twin_ylabel: str) -> None:
+    """Log-scale errors on ``ax``, a dotted cost curve on a twin axis, one legend (below
+    the axes, where it covers no curve)."""
     ax.set_yscale("log")
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
@@ -574,4 +579,5 @@ def log_axes_with_twin(ax: Axes, xlabel: str, ylabel: str, x: list[float],
     ax2.set_ylabel(twin_ylabel)
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = ax2.get_legend_handles_labels()
-    ax.legend(h1 + h2, l1 + l2, fontsize=8, loc=legend_loc)
+    ax.legend(h1 + h2, l1 + l2, fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.13),
+              ncol=min(4, len(h1 + h2)), frameon=False)

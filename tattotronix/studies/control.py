@@ -11,6 +11,7 @@ Cases: ``study.control.cases`` (name -> structure and wn); a case sweeps
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -55,8 +56,19 @@ def _log_log_wn(ax: Axes, ylabel: str, title: str) -> None:
     ax.set_xlabel("wn, rad/s")
     ax.set_ylabel(ylabel)
     ax.set_title(title)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
+
+
+def _verdicts(ax: Axes, sweep: list[tuple[float, StudyCase]],
+              value: Callable[[StudyCase], float]) -> None:
+    """Name the verdict of every whole-drawing run that did not end ok, left of its point."""
+    for w, c in sweep:
+        verdict = c.text("whole", "verdict")
+        if verdict != "ok":
+            ax.annotate(verdict, (w, value(c)), xytext=(-8, 0), textcoords="offset points",
+                        fontsize=8, color=VERDICT_COLOUR.get(verdict, "k"), ha="right",
+                        va="center")
 
 
 class ControlStudy(ClosedLoopStudy):
@@ -79,11 +91,12 @@ class ControlStudy(ClosedLoopStudy):
         return 4.0 if setting(cfg, "controller.structure") == "computed_torque" else 1.0
 
     def figure(self, cases: Cases, path: Path, title: str = "") -> None:
-        """Structures at wn 20 (bars) and the pid_g bandwidth sweep (lines)."""
+        """Structures at wn 20 (bars); the pid_g bandwidth sweep (lines): tip errors, peak
+        torque and travel error, each on its own axes."""
         plt = pyplot()
-        fig, axes = plt.subplots(1, 3, figsize=(15, 4.8))
+        fig, axes = plt.subplots(2, 2, figsize=(13, 9))
         at20 = [(s, cases[f"{s}-wn20"]) for s in _STRUCTURES if f"{s}-wn20" in cases]
-        ax = axes[0]
+        ax = axes[0, 0]
         width = 0.2
         for i, (key, label, hatch) in enumerate((("settled_mean_um", "settled mean", ""),
                                                   ("marking_max_um", "worst marking", "//"))):
@@ -92,45 +105,50 @@ class ControlStudy(ClosedLoopStudy):
                 ys = [window_value(c, win, key) for _, c in at20]
                 ax.bar(xs, ys, width, label=f"{label}, {wlabel}", hatch=hatch,
                        color=("#3b6fb6", "#9cbbe3")[j], edgecolor="k", linewidth=0.4)
-        ax.set_xticks(range(len(at20)), [s for s, _ in at20], rotation=15)
+        ax.set_xticks(range(len(at20)), [s for s, _ in at20])
         ax.set_yscale("log")
-        ax.set_ylabel("tip error, um")
+        # room above the bars for the legend (the bars end below 70 % of the height)
+        lo, hi = ax.get_ylim()
+        ax.set_ylim(lo, lo * (hi / lo) ** (1 / 0.7))
+        ax.set_xlabel("controller structure")
+        ax.set_ylabel("tip error, µm")
         ax.set_title("structures at wn = 20 rad/s")
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=8, ncol=2, loc="upper center")
         ax.grid(True, axis="y", which="both", alpha=0.3)
 
         sweep = sorted(((c.setting("controller.wn"), c) for c in cases.values()
                         if _structure(c) == "pid_g"),
                        key=lambda x: x[0])
         wns = [w for w, _ in sweep]
-        ax = axes[1]
+        ax = axes[0, 1]
         for win, wlabel, ls in WINDOWS:
             ax.plot(wns, [window_value(c, win, "settled_mean_um") for _, c in sweep],
                     "o" + ls, color="#3b6fb6", label=f"settled mean, {wlabel}")
             ax.plot(wns, [window_value(c, win, "marking_max_um") for _, c in sweep],
                     "s" + ls, color="#c0392b", label=f"worst marking, {wlabel}")
         ax.axhline(300, color="0.5", lw=0.8, ls=":")
-        ax.text(wns[0] if wns else 10, 300, " 0.3 mm line", fontsize=7, va="bottom",
-                color="0.4")
+        ax.text(wns[0] if wns else 10, 300, " 0.3 mm line", fontsize=8, va="bottom",
+                color="0.35")
         ax.axhline(20, color="0.5", lw=0.8, ls="-.")
-        ax.text(wns[0] if wns else 10, 20, " 20 um goal", fontsize=7, va="bottom",
-                color="0.4")
-        _log_log_wn(ax, "tip error, um", "pid_g across the bandwidth")
+        ax.text(wns[0] if wns else 10, 20, " 20 µm goal", fontsize=8, va="bottom",
+                color="0.35")
+        _log_log_wn(ax, "tip error, µm", "pid_g across the bandwidth: tip error")
 
-        ax = axes[2]
+        ax = axes[1, 0]
         for win, wlabel, ls in WINDOWS:
             ax.plot(wns, [window_value(c, win, "peak_torque_nm") for _, c in sweep],
                     "o" + ls, color="#6a4c93", label=f"peak torque, {wlabel}")
+        _verdicts(ax, sweep, lambda c: window_value(c, "whole", "peak_torque_nm"))
+        _log_log_wn(ax, "peak joint torque, N m", "pid_g across the bandwidth: peak torque")
+
+        ax = axes[1, 1]
+        for win, wlabel, ls in WINDOWS:
             ax.plot(wns, [window_value(c, win, "travel_mean_um") / 1000.0 for _, c in sweep],
-                    "^" + ls, color="#e08a1e", label=f"travel mean (mm), {wlabel}")
-        for w, c in sweep:
-            verdict = c.text("whole", "verdict")
-            if verdict != "ok":
-                ax.annotate(f"{verdict} ", (w, window_value(c, "whole", "peak_torque_nm")),
-                            fontsize=7, color=VERDICT_COLOUR.get(verdict, "k"), ha="right",
-                            va="center")
-        _log_log_wn(ax, "N m  /  mm", "pid_g: peak torque and travel error")
-        finish_figure(fig, path, "Control", title, "the original's §5.6; MuJoCo, 1 kHz loop")
+                    "^" + ls, color="#e08a1e", label=f"travel mean, {wlabel}")
+        _verdicts(ax, sweep, lambda c: window_value(c, "whole", "travel_mean_um") / 1000.0)
+        _log_log_wn(ax, "mean tip error in travel, mm",
+                    "pid_g across the bandwidth: travel error")
+        finish_figure(fig, path, "Control", title, "MuJoCo, 1 kHz loop")
 
     def summary(self, cases: Cases) -> JsonDict:
         """The best structure at wn 20 and the best pid_g bandwidth (lowest worst marking

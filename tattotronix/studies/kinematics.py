@@ -77,7 +77,7 @@ from tattotronix.kinematics.ik import (
     TOL,
 )
 from tattotronix.path.kinds import TRAVEL
-from tattotronix.plotting import legend_proxy, pyplot
+from tattotronix.plotting import legend_proxy, place_labels, pyplot
 from tattotronix.robot.description import RobotDescription
 
 __all__ = [
@@ -762,9 +762,9 @@ def manipulability_figure(pc: PathConditioning, kind: ArrayLike, panel_size_mm: 
     w = pc.worst_index
     fig = plt.figure(figsize=(15, 6.8), dpi=120)
     gs = GridSpec(3, 2, figure=fig, width_ratios=(1.0, 1.15), hspace=0.12, wspace=0.14)
-    series = [(pc.sigma5, "sigma_5 (smallest\nsingular value)", "#1971c2"),
-              (pc.cond.cond, "condition number\nsigma_1 / sigma_5", "#c92a2a"),
-              (pc.cond.manipulability, "manipulability\nsqrt(det J J^T)", "#2b8a3e")]
+    series = [(pc.sigma5, "σ₅ (smallest\nsingular value)", "#1971c2"),
+              (pc.cond.cond, "condition number\nσ₁ / σ₅", "#c92a2a"),
+              (pc.cond.manipulability, "manipulability\n$\\sqrt{\\det(J\\,J^T)}$", "#2b8a3e")]
     axes: list[Any] = []
     for r, (y, label, colour) in enumerate(series):
         ax = fig.add_subplot(gs[r, 0], sharex=axes[0] if axes else None)
@@ -777,7 +777,9 @@ def manipulability_figure(pc: PathConditioning, kind: ArrayLike, panel_size_mm: 
         if r < 2:
             ax.tick_params(labelbottom=False)
         axes.append(ax)
-    axes[0].legend(loc="upper right", fontsize=7)
+    # above the axes: inside, it would cover the curve
+    axes[0].legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), fontsize=7, frameon=False,
+                   borderaxespad=0.1)
     axes[-1].set_xlabel("path point (index along the path)")
 
     ax = fig.add_subplot(gs[:, 1])
@@ -791,7 +793,7 @@ def manipulability_figure(pc: PathConditioning, kind: ArrayLike, panel_size_mm: 
             label="worst-conditioned point")
     wd = ", ".join(f"{v:+.3f}" for v in pc.weakest_direction)
     ax.annotate(f"({pc.worst_point_mm[0]:.2f}, {pc.worst_point_mm[1]:.2f}) mm\n"
-                f"cond {pc.cond.cond[w]:.1f}, sigma_5 {pc.sigma5[w]:.4f}\n"
+                f"cond {pc.cond.cond[w]:.1f}, σ₅ {pc.sigma5[w]:.4f}\n"
                 f"weakest dq (j1..j{len(pc.weakest_direction)}): ({wd})",
                 xy=pc.worst_point_mm[:2], xytext=(0.02, 0.03), textcoords="axes fraction",
                 fontsize=7.5, va="bottom",
@@ -807,8 +809,8 @@ def manipulability_figure(pc: PathConditioning, kind: ArrayLike, panel_size_mm: 
     s: dict[str, Any] = pc.summary()  # read back: JSON values
     fig.suptitle(
         f"{title + ': ' if title else ''}task-Jacobian conditioning along the path "
-        f"({s['points']} points)   sigma_1 {s['sigma1'][0]:.4f} .. {s['sigma1'][1]:.4f}, "
-        f"sigma_5 {s['sigma5'][0]:.4f} .. {s['sigma5'][1]:.4f}, "
+        f"({s['points']} points)   σ₁ {s['sigma1'][0]:.4f} .. {s['sigma1'][1]:.4f}, "
+        f"σ₅ {s['sigma5'][0]:.4f} .. {s['sigma5'][1]:.4f}, "
         f"cond {s['cond'][0]:.1f} .. {s['cond'][1]:.1f}", fontsize=10)
     fig.subplots_adjust(left=0.07, right=0.95, top=0.93, bottom=0.08)
     fig.savefig(path, format="png")
@@ -854,11 +856,11 @@ def reachability_figure(reach: Reachability, uvz_mm: ArrayLike, kind: ArrayLike,
                legend_proxy(".", "#adb5bd", "the drawing (white)", ms=6)]
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=4,
               fontsize=8, frameon=False)
-    _side_colorbar(fig, ax, mesh, "condition number sigma_1 / sigma_5 at the cell")
+    _side_colorbar(fig, ax, mesh, "condition number σ₁ / σ₅ at the cell")
     ax.set_title(
         f"{title + ': ' if title else ''}panel reachability, needle vertical at the surface "
         f"(z = {reach.z_m * MM:.1f} mm): {reach.percent:.3f} % of "
-        f"{len(reach.x_m)} x {len(reach.y_m)} cells\n"
+        f"{len(reach.x_m)} × {len(reach.y_m)} cells\n"
         "rows swept in +x, warm-started from the previous success, reset to the seed after "
         "a failure", fontsize=9)
     fig.tight_layout()
@@ -894,7 +896,7 @@ def workspace_figure(ws: Workspace, desc: RobotDescription, path: Path,
         ax.grid(alpha=0.3)
     common = [
         legend_proxy(".", "#adb5bd", f"tip, any needle axis ({int((~down).sum())})"),
-        legend_proxy(".", "#1971c2", f"tip, needle within {down_deg:g} deg of down "
+        legend_proxy(".", "#1971c2", f"tip, needle within {down_deg:g}° of down "
                                      f"({int(down.sum())})"),
         legend_proxy("*", "#f08c00", "tip at the zero pose", ms=10, mec="black"),
         legend_proxy("+", "black", "joint_1 axis", ms=10),
@@ -938,28 +940,22 @@ def placement_figure(sweep: PlacementSweep, path: Path, reach: Reachability | No
     rw = np.array([p.r_worst_mm for p in rows])
     conv = np.array([p.converged_pct for p in rows])
     full = conv >= 100.0
-    # labels of placements with equal reach go on alternate sides
-    seen: dict[float, int] = {}
-    side = []
-    for p in rows:
-        n_seen = seen.get(round(p.reach_mm, 6), 0)
-        seen[round(p.reach_mm, 6)] = n_seen + 1
-        side.append(1 if n_seen % 2 == 0 else -1)
     fig, axes = plt.subplots(1, 3, figsize=(16, 5.2), dpi=120)
-    for ax, y, label in ((axes[0], s5, "sigma_5 min (converged points)"),
+    labelled: list[tuple[Any, Array, Array, list[str], list[Array]]] = []
+    for ax, y, label in ((axes[0], s5, "σ₅ min (converged points)"),
                          (axes[1], cm, "condition number max (converged points)")):
         order = np.argsort(reach_mm, kind="stable")
         ax.plot(reach_mm[order], y[order], "-", color="#adb5bd", lw=1, zorder=0)
         ax.plot(reach_mm[full], y[full], "o", color="#1971c2", ms=7, label="100 % converged")
         ax.plot(reach_mm[~full], y[~full], "s", color="#c92a2a", ms=7,
                 label="not all converged")
-        for p, yy, sd in zip(rows, y, side, strict=True):
-            txt = p.label + ("" if p.converged_pct >= 100 else f"\n{p.converged_pct:.1f} % conv.")
-            ax.annotate(txt, (p.reach_mm, yy), xytext=(6 * sd, 2), textcoords="offset points",
-                        fontsize=7, ha="left" if sd > 0 else "right")
+        labelled.append((ax, reach_mm, y, [
+            p.label + ("" if p.converged_pct >= 100 else f"\n{p.converged_pct:.1f} % conv.")
+            for p in rows], [np.column_stack([reach_mm[order], y[order]])]))
         ax.set_xlabel("reach in +x from the panel centre, W / 2 + offset (mm)")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
+        ax.margins(x=0.12, y=0.1)
     axes[1].set_yscale("log")
     axes[0].legend(fontsize=7, loc="upper right")
     ax = axes[2]
@@ -971,20 +967,17 @@ def placement_figure(sweep: PlacementSweep, path: Path, reach: Reachability | No
                 ms=4, label=f"panel grid cells (surface, z = {reach.z_m * MM:.1f} mm)")
     ax.plot(rw[full], s5[full], "o", color="#1971c2", ms=7, label="placements")
     ax.plot(rw[~full], s5[~full], "s", color="#c92a2a", ms=7)
-    stacked = 0
-    for p, sd in zip(rows, side, strict=True):
-        dy = 2
-        if p.converged_pct < 100.0:  # these pile up at the edge of the reach: stack them
-            dy, sd, stacked = 2 + 9 * stacked, 1, stacked + 1
-        ax.annotate(p.label, (p.r_worst_mm, p.sigma5_min), xytext=(6 * sd, dy),
-                    textcoords="offset points", fontsize=7, ha="left" if sd > 0 else "right")
+    labelled.append((ax, rw, s5, [p.label for p in rows], []))
     ax.set_xlabel("distance of the weakest point from the joint_1 axis (mm)")
-    ax.set_ylabel("sigma_5")
+    ax.set_ylabel("σ₅")
     ax.grid(alpha=0.3)
+    ax.margins(x=0.1, y=0.08)
     ax.legend(fontsize=7, loc="lower left")
     fig.suptitle(f"{title + ': ' if title else ''}placement sweep (drawing scaled to width W, "
-                 "shifted +offset in x): sigma_5 is a function of the distance from the "
+                 "shifted +offset in x): σ₅ is a function of the distance from the "
                  "joint_1 axis", fontsize=10)
     fig.tight_layout()
+    for ax, x, y, texts, lines in labelled:  # beside their markers, on the final layout
+        place_labels(ax, np.column_stack([x, y]), texts, 4.0, avoid=lines, fontsize=7)
     fig.savefig(path, format="png")
     plt.close(fig)

@@ -91,8 +91,8 @@ class RateStudy(ClosedLoopStudy):
             ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1,
                                        color=VERDICT_COLOUR.get(verdict, "0.7"), alpha=0.75))
             if verdict == "ok":
-                body = (f"settled {c.number('whole', 'settled_mean_um'):.2f} um\n"
-                        f"worst {c.number('whole', 'marking_max_um'):.1f} um\n"
+                body = (f"settled {c.number('whole', 'settled_mean_um'):.2f} µm\n"
+                        f"worst {c.number('whole', 'marking_max_um'):.1f} µm\n"
                         f"peak {c.number('whole', 'peak_torque_nm'):.3f} N m")
             else:
                 body = textwrap.fill(c.text("whole", "reason", "").split(" (")[0], 30)
@@ -116,7 +116,7 @@ class RateStudy(ClosedLoopStudy):
         if cases:
             b = next(iter(cases.values())).number("verdict_check", "boundary_wnT")
             bx.axvline(b, color="0.3", ls="--", lw=1)
-            bx.text(b, rates[0] * 0.72, f" exact hold: 2/(3 lambda_max) = {b:.3f}",
+            bx.text(b, rates[0] * 0.72, f" exact hold: 2 / (3 $\\lambda_{{max}}$) = {b:.3f}",
                     fontsize=8)
         for v, col in VERDICT_COLOUR.items():
             bx.scatter([], [], color=col, edgecolor="k", label=v)
@@ -129,14 +129,16 @@ class RateStudy(ClosedLoopStudy):
         bx.set_yticks(rates, [f"{r:g}" for r in rates])
         bx.yaxis.set_minor_formatter(NullFormatter())
         ticks = sorted({round(c.number("verdict_check", "wnT"), 2) for c in cases.values()})
-        bx.set_xticks(ticks, [f"{t:g}" for t in ticks])
+        # every case's wn T, slanted: neighbours on the log axis are close
+        bx.set_xticks(ticks, [f"{t:g}" for t in ticks], rotation=45, ha="right",
+                      rotation_mode="anchor")
         bx.xaxis.set_minor_formatter(NullFormatter())
         bx.set_xlabel("wn T")
         bx.set_ylabel("loop rate, Hz")
         bx.set_title("verdict against the computed sampled-loop boundary")
         bx.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
         bx.grid(True, which="both", alpha=0.3)
-        finish_figure(fig, path, "Rate", title, "the original's §5.8; pid_g_v")
+        finish_figure(fig, path, "Rate", title, "pid_g_v")
 
     def summary(self, cases: Cases) -> JsonDict:
         """How many verdicts agree with the computed boundary, and how many are ok."""

@@ -95,7 +95,7 @@ class ResampleStudy(ClosedLoopStudy):
         return {"chord": _chord_error(cfg, name)}
 
     def figure(self, cases: Cases, path: Path, title: str = "") -> None:
-        """Chord error and tracking (um), and the point count, against the point step."""
+        """Chord error and tracking (µm), and the point count, against the point step."""
         plt = pyplot()
         rows = sorted_by(cases, "toolpath.step_mm")
         h = [x for x, _ in rows]
@@ -109,11 +109,13 @@ class ResampleStudy(ClosedLoopStudy):
         if rows:
             res_um = rows[0][1].number("chord", "mask_res_mm") * 1000.0
             ax.axhline(res_um, color="0.5", lw=0.8, ls=":")
-            ax.text(h[0], res_um, f" mask pixel {res_um:g} um", fontsize=7, va="bottom")
-        log_axes_with_twin(ax, "point step, mm", "um", h,
+            # at the right end: the point count's first marker is at the left, up here
+            ax.text(h[-1], res_um, f"mask pixel {res_um:g} µm ", fontsize=8, va="bottom",
+                    ha="right", color="0.35")
+        log_axes_with_twin(ax, "point step, mm", "error, µm", h,
                            [c.number("drawing", "points") for _, c in rows],
-                           "trajectory points", "points", "center right")
-        finish_figure(fig, path, "Resample", title, "the original's §2.11; whole drawing")
+                           "trajectory points", "trajectory points")
+        finish_figure(fig, path, "Resample", title, "whole drawing")
 
     def summary(self, cases: Cases) -> JsonDict:
         """The chord error, the worst marking and the point count of each step."""

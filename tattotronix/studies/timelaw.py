@@ -18,7 +18,7 @@ from pathlib import Path
 from tattotronix.config.schema import Config, StudyConfig
 from tattotronix.io.artifacts import IkRecord
 from tattotronix.io.jsontypes import JsonDict, JsonValue
-from tattotronix.plotting import pyplot
+from tattotronix.plotting import place_labels, pyplot
 from tattotronix.studies.base import Cases, ClosedLoopStudy, StudyCase, finish_figure, int_label
 from tattotronix.trajectory.path import JointPath
 
@@ -65,36 +65,56 @@ class TimeLawStudy(ClosedLoopStudy):
                           "cycle_over_marking": duration / marking_only}}
 
     def figure(self, cases: Cases, path: Path, title: str = "") -> None:
-        """Worst marking error and settled mean against the cycle, one point per case."""
+        """Worst marking error, settled mean and travel mean against the cycle, one point
+        per case, each named beside its marker."""
         plt = pyplot()
-        fig, axes = plt.subplots(1, 3, figsize=(16, 4.8))
+        fig, axes = plt.subplots(1, 3, figsize=(16, 5.4))
         jerks = sorted({c.setting("trajectory.jerk_rad_s3") for c in cases.values()})
         markers = dict(zip(jerks, "osD^v", strict=False))
-        for ax, key, goal, label in (
-                (axes[0], "marking_max_um", GOALS["marking_max_um"], "worst marking error, um"),
-                (axes[1], "settled_mean_um", GOALS["settled_mean_um"], "settled mean, um"),
-                (axes[2], "travel_mean_um", GOALS["travel_mean_um"], "travel mean error, um")):
-            for case, c in cases.items():
-                x = c.number("cycle", "cycle_over_marking")
-                y = c.number("whole", key)
-                ax.scatter(x, y, marker=markers.get(c.setting("trajectory.jerk_rad_s3"), "o"),
-                           s=60, color="tab:green" if meets_goals(c) else "tab:red",
-                           edgecolor="k", zorder=3)
-                ax.annotate(case, (x, y), fontsize=7, xytext=(4, 3),
-                            textcoords="offset points")
+        xs = [c.number("cycle", "cycle_over_marking") for c in cases.values()]
+        panels = ((axes[0], "marking_max_um", "worst marking error, µm"),
+                  (axes[1], "settled_mean_um", "settled mean, µm"),
+                  (axes[2], "travel_mean_um", "travel mean error, µm"))
+        goals = []
+        for ax, key, label in panels:
+            goal = GOALS[key]
+            for x, c in zip(xs, cases.values(), strict=True):
+                ax.scatter(x, c.number("whole", key),
+                           marker=markers.get(c.setting("trajectory.jerk_rad_s3"), "o"), s=60,
+                           color="tab:green" if meets_goals(c) else "tab:red", edgecolor="k",
+                           zorder=3)
             ax.axhline(goal, color="k", ls="--", lw=1)
-            ax.text(ax.get_xlim()[0], goal, " goal", va="bottom", fontsize=8)
             ax.set_xlabel("cycle over marking-only time")
             ax.set_ylabel(label)
             ax.grid(True, alpha=0.3)
+            # room for the names beside the points, and the goal well inside the axes
+            ax.margins(x=0.2, y=0.12)
+            lo, hi = ax.get_ylim()
+            pad = 0.1 * (hi - lo)
+            ax.set_ylim(min(lo, goal - pad), max(hi, goal + pad))
+            goals.append(ax.annotate(f"goal {goal:g} µm", (0.99, goal),
+                                     xycoords=("axes fraction", "data"), xytext=(0, 3),
+                                     textcoords="offset points", ha="right", va="bottom",
+                                     fontsize=8))
         for j, m in markers.items():
             axes[0].scatter([], [], marker=m, color="0.6", edgecolor="k",
-                            label=f"jerk {j:g} rad/s^3")
+                            label=f"jerk limit {j:g} rad/s³")
         axes[0].scatter([], [], color="tab:green", label="meets every goal")
         axes[0].scatter([], [], color="tab:red", label="misses one")
-        axes[0].legend(fontsize=8)
+        fig.legend(*axes[0].get_legend_handles_labels(), loc="lower center", ncol=5,
+                   fontsize=9, frameon=False)
+
+        def names() -> None:
+            renderer = fig.canvas.get_renderer()
+            for (ax, key, _), text in zip(panels, goals, strict=True):
+                place_labels(ax, [(x, c.number("whole", key)) for x, c in
+                                  zip(xs, cases.values(), strict=True)], list(cases), 5.0,
+                             avoid=[[(x, GOALS[key]) for x in ax.get_xlim()]],
+                             taken=[text.get_window_extent(renderer)], fontsize=7.5)
+
         finish_figure(fig, path, "Time law", title,
-                      "tip acceleration x jerk limit; MuJoCo, pid_g_v, wn 160, 1 kHz")
+                      "tip acceleration × jerk limit; MuJoCo, pid_g_v, wn 160 rad/s, 1 kHz",
+                      bottom=0.07, then=names)
 
     def summary(self, cases: Cases) -> JsonDict:
         """The fastest case that meets every goal (``None`` when none does)."""
