@@ -6,11 +6,12 @@
     python stages/draw.py artwork.source=PATH ...     # plans the drawing first, in memory
     python stages/draw.py backend=arm art=NAME [dry_run=true [realtime=false]] [resume=true]
 
-Writes data/runs/<name>-<backend>/{log.npz, ink.png, ink_vs_plan.png} and
-data/metrics/runs/<name>-<backend>.json (tracking errors as the original defined them,
+Writes runs/<name>-<backend>/{log.npz, ink.png, ink_vs_plan.png} and
+metrics/runs/<name>-<backend>.json (tracking errors as the original defined them,
 docs/original.md, "5.5 Tracking error"; peak torque, real-time factor, ink IoU against
-the plan). On the arm: data/runs/<name>-arm/{i2c.jsonl (dry run), poses.jsonl} and the
-arm state file.
+the plan) under data/ when DVC runs it (the simulate stage), under runs/ by hand (README,
+"Hand runs"). On the arm: the plan first (preview=true stops there), then
+runs/<name>-arm/{i2c.jsonl (dry run), poses.jsonl} and the arm state file.
 """
 
 from __future__ import annotations

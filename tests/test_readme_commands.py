@@ -57,7 +57,7 @@ COVERED: dict[str, tuple[str, ...]] = {
         NOT_RUN, "needs a configured remote (the repository configures none); DVC's own "
         "command"),
     # --- collision safety
-    "python stages/collision.py pose=[0,1.57,0,0,0]": (
+    "python stages/collision.py 'pose=[0,1.57,0,0,0]'": (
         TEST, "tests/test_collision.py::test_cli_pose_names_the_colliding_pairs",
         "the same command (the `cli_runs` fixture), on the committed k-DOP geometry; the "
         "test reads its one JSON object"),
@@ -67,7 +67,7 @@ COVERED: dict[str, tuple[str, ...]] = {
         f"backend=mujoco {SMALL}; on the emblem itself it is the `simulate@emblem` stage "
         "(`art=emblem backend=mujoco window=null`), which "
         "tests/test_config.py::test_dvc_repro_on_a_clean_clone runs"),
-    "python stages/draw.py backend=model art=emblem window=[200,12] controller.wn=40": (
+    "python stages/draw.py backend=model art=emblem 'window=[200,12]' controller.wn=40": (
         TEST, "tests/test_draw.py::test_unstable_controller_is_reported_not_crashed",
         f"backend=model with a window (window=[0,3], controller.rate_hz=200) {SMALL}; the "
         "README's overrides compose in tests/test_bad_inputs.py::"

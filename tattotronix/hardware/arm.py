@@ -835,8 +835,10 @@ def state_file_of(cfg: Config, data: Path, folder: Path) -> Path:
 def draw_on_arm(cfg: Config, out: Outputs) -> JsonDict:
     """``draw.py backend=arm``: compile the drawing and stream it (see the module docstring).
 
-    Appends to ``data/runs/<name>-arm/{i2c.jsonl (dry run), poses.jsonl}``, writes the arm
-    state file, and on completion ``data/metrics/runs/<name>-arm.json``.
+    Prints the plan first (:mod:`tattotronix.hardware.preview`); ``preview=true`` stops
+    there with ``preview.png``. Appends to ``runs/<name>-arm/{i2c.jsonl (dry run),
+    poses.jsonl}`` under the write root (``runs/`` by hand: ``io.outputs.write_root``),
+    writes the arm state file, and on completion ``metrics/runs/<name>-arm.json``.
     """
     from tattotronix.control.drawing import resolve_drawing
     from tattotronix.pipeline import ik_settings
