@@ -1,16 +1,19 @@
-"""Stage `animate`: the drawing animation of one artwork.
+"""Stage `animate`: the drawing animation of one artwork, in 2-D and in 3-D.
 
-Reads data/trajectories/<name>.npz ('trajectory' stage) and data/robot/tattotronix.urdf
-('robot' stage), and data/runs/<name>-mujoco/log.npz ('simulate' stage) when it exists:
-then the arm and the ink follow the simulated run (ink where the simulated tip went below
-the panel surface); without it, the planned trajectory (said on every frame). Writes
-data/figures/<name>/drawing.gif and, when imageio-ffmpeg is installed,
-data/figures/<name>/drawing.mp4.
+Reads data/trajectories/<name>.npz ('trajectory' stage), data/robot/tattotronix.urdf and
+data/robot/tattotronix.xml ('robot' stage), and data/runs/<name>-mujoco/log.npz
+('simulate' stage) when it exists: then the arm and the ink follow the simulated run (ink
+where the simulated tip went below the panel surface); without it, the planned trajectory
+(said on every frame). Writes data/figures/<name>/drawing.gif (the arm in elevation, the
+panel face-on) and data/figures/<name>/drawing3d.gif (MuJoCo's offscreen renderer: the
+arm, the panel and the ink in 3-D), and, when imageio-ffmpeg is installed, the same as
+drawing.mp4 and drawing3d.mp4.
 """
 
 from __future__ import annotations
 
 import logging
+from pathlib import Path
 
 import numpy as np
 
@@ -18,7 +21,14 @@ from tattotronix.art.artwork import artwork_name
 from tattotronix.config.schema import Config
 from tattotronix.io.artifacts import RunLogRecord, TrajectoryRecord, run_label
 from tattotronix.io.outputs import Outputs
-from tattotronix.report.animation import drawing_clip, mp4_available, render_drawing
+from tattotronix.report.animation import (
+    DrawingClip,
+    RenderResult,
+    drawing_clip,
+    mp4_available,
+    render_drawing,
+)
+from tattotronix.report.render3d import render_drawing_3d, select_gl
 from tattotronix.robot.description import build_description
 from tattotronix.stage import run_stage
 from tattotronix.trajectory import load_trajectory
@@ -30,10 +40,12 @@ BACKEND = "mujoco"  # the simulate stage's plant
 
 def main(cfg: Config, out: Outputs) -> None:
     """Render the drawing of the configured artwork."""
+    gl = select_gl()  # MuJoCo's OpenGL platform: before anything imports mujoco
     name = artwork_name(cfg.artwork)
     desc = build_description(cfg.robot)
     traj = load_trajectory(TrajectoryRecord.require(out.data, name=name))
     urdf = out.require(out.input("robot", f"{desc.name}.urdf"), "robot")
+    mjcf = out.require(out.input("robot", f"{desc.name}.xml"), "robot")
     run_file = RunLogRecord.path(out.data, label=run_label(name, BACKEND))
     run: dict[str, np.ndarray] = {}
     if run_file.exists():
@@ -46,20 +58,28 @@ def main(cfg: Config, out: Outputs) -> None:
                         cfg.toolpath.panel_origin, run_label=f"the simulated run ({BACKEND})",
                         **run)
     fig_dir = out.path("figures", name)
-    gif = out.tmp_path(fig_dir / "drawing.gif")
-    mp4 = None
-    if mp4_available():
-        mp4 = out.tmp_path(fig_dir / "drawing.mp4")
-    else:
-        log.info("animate %s: imageio-ffmpeg is not installed: drawing.mp4 not written "
-                 "(pip install imageio-ffmpeg)%s", name,
-                 "; the one there is stale" if (fig_dir / "drawing.mp4").exists() else "")
-    res = render_drawing(clip, gif=gif, mp4=mp4)
-    log.info("animate %s: %d frames (%.1f s of drawing in %.1f s, x%.1f), GIF %d frames%s; "
-             "%.1f s (%s)", name, res.frames, clip.duration_s, clip.video_s, clip.compression,
-             res.gif_frames, ", MP4" if res.mp4 else "", res.wall_s,
-             ", ".join(f"{k} {v:.1f} s" for k, v in res.timings_s.items()))
+    res = render_drawing(clip, *_videos(out, fig_dir, "drawing", name))
+    _log_render(name, "drawing (2-D)", clip, res)
+    res = render_drawing_3d(clip, mjcf, *_videos(out, fig_dir, "drawing3d", name))
+    _log_render(name, f"drawing3d (MuJoCo, MUJOCO_GL={gl or 'its default'})", clip, res)
 
+
+def _videos(out: Outputs, fig_dir: Path, stem: str, name: str) -> tuple[Path, Path | None]:
+    """The GIF and, when imageio-ffmpeg is installed, the MP4 to write (temporaries)."""
+    gif = out.tmp_path(fig_dir / f"{stem}.gif")
+    if mp4_available():
+        return gif, out.tmp_path(fig_dir / f"{stem}.mp4")
+    log.info("animate %s: imageio-ffmpeg is not installed: %s.mp4 not written (pip install "
+             "imageio-ffmpeg)%s", name, stem,
+             "; the one there is stale" if (fig_dir / f"{stem}.mp4").exists() else "")
+    return gif, None
+
+
+def _log_render(name: str, what: str, clip: DrawingClip, res: RenderResult) -> None:
+    log.info("animate %s: %s: %d frames (%.1f s of drawing in %.1f s, x%.1f), GIF %d "
+             "frames%s; %.1f s (%s)", name, what, res.frames, clip.duration_s, clip.video_s,
+             clip.compression, res.gif_frames, ", MP4" if res.mp4 else "", res.wall_s,
+             ", ".join(f"{k} {v:.1f} s" for k, v in res.timings_s.items()))
 
 if __name__ == "__main__":
     run_stage("animate", main)

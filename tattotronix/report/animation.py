@@ -34,10 +34,13 @@ from tattotronix.report.figures import arm_poses
 from tattotronix.robot.description import RobotDescription
 
 __all__ = [
+    "INK_RGB",
+    "ClipWriter",
     "DrawingClip",
     "RenderResult",
     "drawing_clip",
     "mp4_available",
+    "needle_label",
     "render_drawing",
 ]
 
@@ -60,7 +63,14 @@ _LABEL = {(True, MARK): ("MARKING, needle down", "#c92a2a"),
           (False, MARK): ("needle up, plunging", "#e8590c"),
           (False, APPROACH): ("approach, needle up", "#e8590c"),
           (False, TRAVEL): ("travel, needle up", "#1971c2")}
-_INK = (22, 27, 72)  # dark blue-black
+#: the ink's colour, RGB (dark blue-black)
+INK_RGB = (22, 27, 72)
+
+
+def needle_label(down: bool, state: int) -> tuple[str, str]:
+    """The words and colour (matplotlib) of a frame's needle state: ``down``, the tip
+    below the panel surface; ``state``, the trajectory's segment kind."""
+    return _LABEL.get((down, state), ("", "black"))
 
 
 def mp4_available() -> bool:
@@ -75,6 +85,8 @@ class DrawingClip:
     Attributes:
         name: the artwork.
         t: (F,) drawing time at each video frame, s.
+        joints: the joint names, in the order of ``q``'s columns.
+        q: (F, n) the joint angles at each frame, rad.
         arm_m: (F, P, 3) the chain's frame origins (base to tip) at each frame, m.
         state: (F,) needle state at each frame: 0 travel, 1 marking, 2 approach.
         tip_t: (S,) times of the tip samples the ink is drawn from, s.
@@ -90,6 +102,8 @@ class DrawingClip:
 
     name: str
     t: Array
+    joints: tuple[str, ...]
+    q: Array
     arm_m: Array
     state: NDArray[np.int8]
     tip_t: Array
@@ -191,7 +205,8 @@ def drawing_clip(desc: RobotDescription, urdf: Path, name: str, t: ArrayLike, q:
     i = np.clip(np.searchsorted(tt, tf, side="right") - 1, 0, len(seg) - 1)
     plan = np.asarray(tcp_m, dtype=np.float64)[np.asarray(marked, dtype=bool)]
     return DrawingClip(
-        name=name, t=tf, arm_m=poses.origins_m[:, chain], state=seg[i].astype(np.int8),
+        name=name, t=tf, joints=tuple(desc.joint_names), q=q_frames,
+        arm_m=poses.origins_m[:, chain], state=seg[i].astype(np.int8),
         tip_t=tip_t, tip_m=tip, duration_s=duration,
         panel_centre_m=np.asarray(desc.panel_centre, dtype=np.float64),
         panel_size_m=np.asarray(desc.panel_size, dtype=np.float64), panel_origin_m=origin,
@@ -340,7 +355,7 @@ class _Frames:
             hi = seg.reshape(-1, 2).max(axis=0) // 16 + 3
             cs, rs = slice(int(lo[0]), int(min(hi[0], w))), slice(int(lo[1]), int(min(hi[1], h)))
             a = self.alpha[rs, cs, None].astype(np.uint16)
-            ink = np.asarray(_INK, np.uint16)
+            ink = np.asarray(INK_RGB, np.uint16)
             self.panel_rgb[rs, cs] = (self.panel_bg[rs, cs] * (255 - a) + ink * a) // 255
         self.done = stop
 
@@ -354,7 +369,7 @@ class _Frames:
         self.arm_line.set_data(arm[:, 0], arm[:, 2])
         uvz = np.array([np.interp(t, clip.tip_t, self.uvz[:, c]) for c in range(3)])
         down = bool(uvz[2] < 0.0)
-        label, colour = _LABEL.get((down, int(clip.state[k])), ("", "black"))
+        label, colour = needle_label(down, int(clip.state[k]))
         self.arm_tip.set_data([arm[-1, 0]], [arm[-1, 2]])
         self.arm_tip.set_color(colour)
         self.pen.set_data([uvz[0]], [uvz[1]])
@@ -412,6 +427,92 @@ def _write_gif(path: Path, frames: list[Any], palette: Any, durations: list[int]
                 loop=0, optimize=False, **extra)
 
 
+class ClipWriter:
+    """Video frames to a GIF and/or an MP4, as they come.
+
+    The MP4 (H.264, yuv420p, ``fps``) takes every frame, encoded as it arrives; the GIF
+    every ``gif_every``-th frame and the last, ``gif_width_px`` wide, with one palette
+    shared by every frame (from ``palette_frames`` frames spread over the clip), the last
+    one held 2 s.
+
+    Args:
+        gif: the GIF to write, or None.
+        mp4: the MP4 to write, or None. Skipped, with a log line, when ``imageio-ffmpeg``
+            is not installed.
+        fps: frames per second.
+        size_px: the frames' size (the MP4's), px; both multiples of 16 for the MP4.
+        gif_width_px: GIF width, px.
+        gif_every: GIF frame stride.
+        palette_frames: GIF frames the palette is made from (shaded 3-D frames need more
+            than flat figures).
+    """
+
+    def __init__(self, gif: Path | None, mp4: Path | None, *, fps: float,
+                 size_px: tuple[int, int], gif_width_px: int, gif_every: int = 2,
+                 palette_frames: int = 4):
+        if mp4 is not None and not mp4_available():
+            log.info("animation: imageio-ffmpeg is not installed: no MP4 (pip install "
+                     "imageio-ffmpeg); writing the GIF only")
+            mp4 = None
+        self.gif, self.mp4, self.fps = gif, mp4, fps
+        self.size_px, self.gif_every = size_px, gif_every
+        self.gif_width_px = gif_width_px
+        self.palette_frames = palette_frames
+        self.gif_h = int(round(size_px[1] * gif_width_px / size_px[0] / 2)) * 2
+        self._gif_rgb: list[Any] = []
+        self._writer: Any = None
+        self.timings_s: dict[str, float] = {}
+        if mp4 is not None:
+            import imageio.v2 as imageio
+
+            self._writer = imageio.get_writer(
+                str(mp4), format="FFMPEG", mode="I", fps=fps, codec="libx264",
+                pixelformat="yuv420p", quality=None, macro_block_size=16,
+                ffmpeg_log_level="error",
+                output_params=["-crf", "20", "-preset", "veryfast", "-movflags", "+faststart"])
+
+    def add(self, k: int, n: int, frame: NDArray[np.uint8]) -> None:
+        """Frame ``k`` of ``n``: an (H, W, 3 or 4) uint8 array at ``size_px``."""
+        import cv2
+        from PIL import Image
+
+        if self._writer is not None:
+            self._writer.append_data(np.ascontiguousarray(frame[..., :3]))
+        if self.gif is not None and (k % self.gif_every == 0 or k == n - 1):
+            small: NDArray[Any] = frame
+            if (frame.shape[1], frame.shape[0]) != (self.gif_width_px, self.gif_h):
+                small = cv2.resize(frame, (self.gif_width_px, self.gif_h),
+                                   interpolation=cv2.INTER_AREA)
+            self._gif_rgb.append(Image.fromarray(np.ascontiguousarray(small[..., :3])))
+
+    @property
+    def gif_frames(self) -> int:
+        """Frames in the GIF so far (0 when none is asked)."""
+        return len(self._gif_rgb) if self.gif is not None else 0
+
+    def close(self) -> None:
+        """Finish the MP4 and write the GIF."""
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+        gif_rgb = self._gif_rgb
+        if self.gif is not None and gif_rgb:
+            t0 = time.perf_counter()
+            n, k = len(gif_rgb), max(2, self.palette_frames)
+            picks = sorted({i * n // (k - 1) for i in range(k - 1)} | {n - 1})
+            pal = _gif_palette([gif_rgb[i] for i in picks])
+            duration_ms = int(round(1000.0 * self.gif_every / self.fps))
+            durations = [duration_ms] * (len(gif_rgb) - 1) + [2000]  # hold the last frame
+            _write_gif(self.gif, gif_rgb, pal, durations)
+            self.timings_s["gif"] = time.perf_counter() - t0
+
+    def abort(self) -> None:
+        """Close the MP4 writer without writing the GIF (an error while rendering)."""
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+
+
 def render_drawing(clip: DrawingClip, gif: Path | None = None, mp4: Path | None = None, *,
                    size_px: tuple[int, int] = SIZE_PX, gif_width_px: int = GIF_WIDTH_PX,
                    gif_every: int = 2) -> RenderResult:
@@ -430,52 +531,25 @@ def render_drawing(clip: DrawingClip, gif: Path | None = None, mp4: Path | None 
     Returns:
         What was written and what it cost.
     """
-    import cv2
-    from PIL import Image
-
     t0 = time.perf_counter()
     timings: dict[str, float] = {}
     frames = _Frames(clip, size_px)
     n = len(clip.t)
-    writer = None
-    if mp4 is not None and not mp4_available():
-        log.info("animation: imageio-ffmpeg is not installed: no MP4 (pip install "
-                 "imageio-ffmpeg); writing the GIF only")
-        mp4 = None
-    if mp4 is not None:
-        import imageio.v2 as imageio
-
-        writer = imageio.get_writer(str(mp4), format="FFMPEG", mode="I", fps=clip.fps,
-                                    codec="libx264", pixelformat="yuv420p", quality=None,
-                                    macro_block_size=16, ffmpeg_log_level="error",
-                                    output_params=["-crf", "20", "-preset", "veryfast",
-                                                   "-movflags", "+faststart"])
+    sink = ClipWriter(gif, mp4, fps=clip.fps, size_px=size_px, gif_width_px=gif_width_px,
+                      gif_every=gif_every)
     timings["setup"] = time.perf_counter() - t0
-    gif_rgb: list[Any] = []
-    gif_h = int(round(size_px[1] * gif_width_px / size_px[0] / 2)) * 2
     t1 = time.perf_counter()
     try:
         for k in range(n):
-            rgba = frames.render(k)
-            if writer is not None:
-                writer.append_data(rgba[..., :3])
-            if gif is not None and (k % gif_every == 0 or k == n - 1):
-                small = cv2.resize(rgba, (gif_width_px, gif_h), interpolation=cv2.INTER_AREA)
-                gif_rgb.append(Image.fromarray(np.ascontiguousarray(small[..., :3])))
-    finally:
-        if writer is not None:
-            writer.close()
+            sink.add(k, n, frames.render(k))
+    except BaseException:
+        sink.abort()
+        raise
     timings["frames"] = time.perf_counter() - t1
-    if mp4 is not None:
+    if sink.mp4 is not None:
         timings["mp4"] = timings["frames"]  # encoded while rendering
-    if gif is not None and gif_rgb:
-        t2 = time.perf_counter()
-        picks = sorted({0, len(gif_rgb) // 3, 2 * len(gif_rgb) // 3, len(gif_rgb) - 1})
-        pal = _gif_palette([gif_rgb[i] for i in picks])
-        duration_ms = int(round(1000.0 * gif_every / clip.fps))
-        durations = [duration_ms] * (len(gif_rgb) - 1) + [2000]  # hold the last frame
-        _write_gif(gif, gif_rgb, pal, durations)
-        timings["gif"] = time.perf_counter() - t2
+    sink.close()
+    timings.update(sink.timings_s)
     wall = time.perf_counter() - t0
-    return RenderResult(frames=n, gif=gif, gif_frames=len(gif_rgb) if gif else 0, mp4=mp4,
+    return RenderResult(frames=n, gif=gif, gif_frames=sink.gif_frames, mp4=sink.mp4,
                         wall_s=wall, timings_s=timings)
