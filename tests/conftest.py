@@ -111,12 +111,16 @@ def default_signals() -> None:
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """The slow tests first, the longest (two whole pipelines) before the others: with
-    ``--dist load`` (pyproject.toml) the first tests go to the workers in turn, so the
-    long ones run side by side from the start and the short ones fill in after, instead
-    of one long test starting last and running alone at the end."""
+    """The slow tests first, and the two longest (each runs whole pipelines) first of all,
+    one per worker: ``--dist load`` (pyproject.toml) deals the first tests to the workers
+    in turn, so the long ones run side by side from the start and the short ones fill in
+    after, instead of one long test queued behind the other or starting last alone."""
     def rank(item: pytest.Item) -> int:
-        if item.get_closest_marker("slow") is None:
-            return 2
-        return 0 if item.path.name == "test_rerun.py" else 1
+        if item.name in LONGEST:
+            return 0
+        return 1 if item.get_closest_marker("slow") is not None else 2
     items.sort(key=rank)  # stable: the order within each rank is the collection's
+
+
+#: the tests that each run the whole pipeline (minutes each)
+LONGEST = ("test_dvc_repro_on_a_clean_clone", "test_every_stage_writes_the_same_metrics_twice")

@@ -439,13 +439,13 @@ def test_a_readme_number_edited_to_disagree_with_its_metrics_fails(
     step = 10.0 ** -decimals
     for k in range(3, 40):  # the first nearby value no source happens to round to
         edited = f"{float(written) + k * step:.{decimals}f}"
-        if sources.trace(extract_figures(f"{edited} um")[0]) is None:
+        if sources.trace(extract_figures(f"{edited} µm")[0]) is None:
             break
     a, b = row.span(1)
     (root / "README.md").write_text(readme[:a] + edited + readme[b:], encoding="utf-8")
     line = readme.count("\n", 0, a) + 1
     report = certify(root, allow_dvc_outputs=True)
-    assert failing(report) == [f"README.md:{line}: {edited} um"], report.format()
+    assert failing(report) == [f"README.md:{line}: {edited} µm"], report.format()
     assert report.failures[0].why.startswith("not traced")
 
 

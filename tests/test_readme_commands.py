@@ -125,9 +125,9 @@ COVERED: dict[str, tuple[str, ...]] = {
         "executor"),
     "dvc exp run --queue -S controller.wn=120 && dvc exp run --run-all && dvc exp show": (
         TEST, "tests/test_config.py::test_dvc_repro_on_a_clean_clone",
-        "`dvc exp run --queue -S hardware.ramp_rad_s=0.3`, `dvc exp run --run-all` and "
-        "`dvc exp show` on a clean clone after its `dvc repro` (a key that reruns fewer "
-        "stages than controller.wn)"),
+        "`dvc exp run -S controller.wn=120`, then the same with `--queue` and "
+        "`dvc exp run --run-all`, and `dvc exp show` listing both, on a clean clone after "
+        "its `dvc repro`"),
     # --- CAD meshes
     "python stages/robot.py robot.cad_dir=../shared/cad/meshes": (
         TEST, "tests/test_readme_runs.py::test_the_cad_commands_run_on_the_meshes",

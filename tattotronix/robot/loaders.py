@@ -28,6 +28,7 @@ import threading
 from collections import OrderedDict
 from collections.abc import Iterator
 from pathlib import Path
+from types import ModuleType
 from typing import Any, Protocol
 
 import numpy as np
@@ -265,7 +266,7 @@ class MujocoArm:
         return self.data.qfrc_bias.copy()  # at zero velocity: gravity only
 
 
-def import_pybullet() -> Any:
+def import_pybullet() -> ModuleType:
     """``import pybullet``, without the "pybullet build time: ..." line its C module prints
     on stdout at import (it lands in the middle of a progress bar, or of a stage's JSON on
     stdout)."""
