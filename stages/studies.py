@@ -21,6 +21,7 @@ from tattotronix.stage import run_stage
 from tattotronix.studies.registry import (
     STUDIES,
     format_summary,
+    load_studies,
     study_curves,
     study_figures,
     study_summary,
@@ -32,14 +33,15 @@ log = logging.getLogger("tattotronix.studies")
 def main(cfg: DictConfig, out: Outputs) -> None:
     """Draw the study figures of the configured artwork; write the conclusions."""
     name = artwork_name(cfg.artwork)
-    written = study_figures(out.data, name, out.path("figures", name), out.tmp_path)
-    if not written:
+    loaded = load_studies(out.data, name)
+    if not loaded:
         *most, last = STUDIES
-        raise TattotronixError(f"no study cases for '{name}' under {out.path('metrics')}: "
+        raise TattotronixError(f"no study cases for '{name}' under {out.input('metrics')}: "
                                f"run the {', '.join(most)} and {last} stages first")
-    summary = study_summary(out.data, name)
+    written = study_figures(loaded, name, out.path("figures", name), out.tmp_path)
+    summary = study_summary(loaded)
     out.write_json(out.path("metrics", "studies", f"{name}.json"), summary)
-    for study, rows in study_curves(out.data, name).items():
+    for study, rows in study_curves(loaded).items():
         out.write_csv(out.path("plots", name, "studies", f"{study}.csv"), rows)
     log.info("studies %s: figures %s", name, ", ".join(written))
     for study, conclusions in summary.items():

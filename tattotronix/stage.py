@@ -22,6 +22,10 @@ A stage script is thin::
   or out of its range), and running out of memory.
 * Ctrl-C (``KeyboardInterrupt``) ends it with one line and exit code 130; the outputs
   staged so far are removed (:meth:`Outputs.transaction`).
+* Inputs are read under ``paths.data``; outputs go where
+  :func:`~tattotronix.io.outputs.write_root` says (``paths.data`` under DVC, ``runs/``
+  for a run by hand on the pipeline's data, or ``paths.out``), and the run ends with one
+  line naming what it wrote. The jobs of a ``-m`` sweep run without progress bars.
 """
 
 from __future__ import annotations

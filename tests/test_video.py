@@ -258,24 +258,34 @@ def _brown(shot: np.ndarray) -> np.ndarray:
     return (r > g + 12) & (g > b + 8) & (r > 60) & (r < 230)
 
 
-@pytest.mark.slow
-def test_the_mujoco_viewer_shows_the_arm_drawing(draw_data: Path, display: str) -> None:
-    """``viewer=true`` opens MuJoCo's passive viewer; its window, screenshot while the
-    drawing runs (paced in real time), shows the bench and an arm that moves."""
-    proc = _viewer_run(draw_data, display, "mujoco", "[0,8]")
-    shots: list[tuple[float, np.ndarray]] = []
+def _watch(proc: subprocess.Popen[str], display: str,
+           look: Callable[[np.ndarray], None]) -> tuple[subprocess.Popen[str], str]:
+    """Screenshot ``display`` every 0.4 s while ``proc`` runs (at most 5 min), handing each
+    to ``look``; then its stderr. A run still going at the end is killed."""
     try:
         deadline = time.monotonic() + 300
         while proc.poll() is None and time.monotonic() < deadline:
-            shot = _grab(display)
-            if _brown(shot).sum() > 2000:  # the viewer is up and draws the scene
-                shots.append((time.monotonic(), shot))
+            look(_grab(display))
             time.sleep(0.4)
-        out, err = proc.communicate(timeout=60)
+        _, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.communicate()
+    return proc, err
+
+
+@pytest.mark.slow
+def test_the_mujoco_viewer_shows_the_arm_drawing(draw_data: Path, display: str) -> None:
+    """``viewer=true`` opens MuJoCo's passive viewer; its window, screenshot while the
+    drawing runs (paced in real time), shows the bench and an arm that moves."""
+    shots: list[tuple[float, np.ndarray]] = []
+
+    def look(shot: np.ndarray) -> None:
+        if _brown(shot).sum() > 2000:  # the viewer is up and draws the scene
+            shots.append((time.monotonic(), shot))
+
+    proc, err = _watch(_viewer_run(draw_data, display, "mujoco", "[0,8]"), display, look)
     assert proc.returncode == 0, err
     assert "needs a display" not in err, err
     assert len(shots) >= 4, f"{len(shots)} screenshots showed the scene: {err[-2000:]}"
@@ -304,19 +314,13 @@ def test_the_mujoco_viewer_shows_the_arm_drawing(draw_data: Path, display: str) 
 def test_the_pybullet_gui_runs(draw_data: Path, display: str) -> None:
     """``viewer=true backend=pybullet`` opens the PyBullet GUI (a window appears on the
     display) and finishes the window."""
-    proc = _viewer_run(draw_data, display, "pybullet", "[0,2]")
-    lit = 0.0
-    try:
-        deadline = time.monotonic() + 300
-        while proc.poll() is None and time.monotonic() < deadline:
-            lit = max(lit, float((_grab(display).max(axis=2) > 30).mean()))
-            time.sleep(0.4)
-        out, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.communicate()
+    lit = [0.0]
+
+    def look(shot: np.ndarray) -> None:
+        lit[0] = max(lit[0], float((shot.max(axis=2) > 30).mean()))
+
+    proc, err = _watch(_viewer_run(draw_data, display, "pybullet", "[0,2]"), display, look)
     assert proc.returncode == 0, err
     assert "needs a display" not in err, err
-    assert lit > 0.1, f"no window on the display ({lit:.1%} of it lit)"
+    assert lit[0] > 0.1, f"no window on the display ({lit[0]:.1%} of it lit)"
     assert (draw_data / "runs" / "small-pybullet" / "log.npz").exists()

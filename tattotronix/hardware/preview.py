@@ -68,17 +68,22 @@ class Preview:
         p0, q0, p1, q1 = self.panel_mm
         return x0 >= p0 and y0 >= q0 and x1 <= p1 and y1 <= q1
 
+    def duration_text(self, decimals: int) -> str:
+        """The duration as ``10 min 50.4 s`` (seconds to ``decimals`` places)."""
+        minutes, seconds = divmod(self.duration_s, 60.0)
+        width = 3 + decimals if decimals else 2
+        return f"{int(minutes)} min {seconds:0{width}.{decimals}f} s"
+
     def text(self) -> str:
         """The plan in one block, as the arm's run prints it before the bus is opened."""
         x0, y0, x1, y1 = self.box_mm
-        minutes, seconds = divmod(self.duration_s, 60.0)
 
         def pose(q: Array) -> str:
             return "[" + ", ".join(f"{v:.1f}" for v in q) + "] deg"
 
         lines = [
             f"plan for the arm: {self.name}",
-            f"  duration      {int(minutes)} min {seconds:04.1f} s ({self.frames} frames at "
+            f"  duration      {self.duration_text(1)} ({self.frames} frames at "
             f"{self.frame_hz:g} Hz)",
             f"  needle entries {self.entries}",
             f"  inked box     x {x0:.1f} .. {x1:.1f} mm, y {y0:.1f} .. {y1:.1f} mm "
@@ -113,8 +118,7 @@ class Preview:
         ax.set_aspect("equal")
         ax.set_xlabel("x on the panel (mm)")
         ax.set_ylabel("y on the panel (mm)")
-        minutes, seconds = divmod(self.duration_s, 60.0)
-        ax.set_title(f"{self.name} on the arm: {int(minutes)} min {seconds:.0f} s, "
+        ax.set_title(f"{self.name} on the arm: {self.duration_text(0)}, "
                      f"{self.entries} needle entries"
                      + ("" if self.fits else " - NOT within the panel"))
         ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9)

@@ -149,8 +149,8 @@ class Outputs:
         return self.write_text(target, "\n".join(lines) + "\n")
 
     def write_timings(self, stage: str, name: str, timings: Mapping[str, float]) -> Path:
-        """Stage the wall times of a run: ``timings/<stage>/<name>.json`` under the data
-        folder. They vary from run to run, so they are kept apart from the metrics (which
+        """Stage the wall times of a run: ``timings/<stage>/<name>.json`` under
+        :attr:`root`. They vary from run to run, so they are kept apart from the metrics (which
         must be byte-identical for the same inputs) and are not tracked by DVC or git."""
         return self.write_json(self.path("timings", stage, f"{name}.json"),
                                {k: float(v) for k, v in timings.items()})

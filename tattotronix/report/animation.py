@@ -21,6 +21,7 @@ from __future__ import annotations
 import importlib.util
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -506,6 +507,18 @@ class ClipWriter:
             _write_gif(self.gif, gif_rgb, pal, durations)
             self.timings_s["gif"] = time.perf_counter() - t0
 
+    def add_all(self, n: int, render: Callable[[int], NDArray[np.uint8]]) -> float:
+        """Add frames ``render(0)`` .. ``render(n - 1)``; on any error (Ctrl-C included)
+        :meth:`abort` and re-raise. Returns the seconds it took."""
+        t0 = time.perf_counter()
+        try:
+            for k in range(n):
+                self.add(k, n, render(k))
+        except BaseException:
+            self.abort()
+            raise
+        return time.perf_counter() - t0
+
     def abort(self) -> None:
         """Close the MP4 writer without writing the GIF (an error while rendering)."""
         if self._writer is not None:
@@ -538,14 +551,7 @@ def render_drawing(clip: DrawingClip, gif: Path | None = None, mp4: Path | None 
     sink = ClipWriter(gif, mp4, fps=clip.fps, size_px=size_px, gif_width_px=gif_width_px,
                       gif_every=gif_every)
     timings["setup"] = time.perf_counter() - t0
-    t1 = time.perf_counter()
-    try:
-        for k in range(n):
-            sink.add(k, n, frames.render(k))
-    except BaseException:
-        sink.abort()
-        raise
-    timings["frames"] = time.perf_counter() - t1
+    timings["frames"] = sink.add_all(n, frames.render)
     if sink.mp4 is not None:
         timings["mp4"] = timings["frames"]  # encoded while rendering
     sink.close()

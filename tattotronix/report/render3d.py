@@ -525,14 +525,7 @@ def render_drawing_3d(clip: DrawingClip, mjcf: Path, gif: Path | None = None,
                           gif_width_px=gif_width_px or size_px[0], gif_every=gif_every,
                           palette_frames=GIF_PALETTE_FRAMES)
         timings["setup"] = time.perf_counter() - t0
-        t1 = time.perf_counter()
-        try:
-            for k in range(n):
-                sink.add(k, n, scene.render(k))
-        except BaseException:
-            sink.abort()
-            raise
-        timings["frames"] = time.perf_counter() - t1
+        timings["frames"] = sink.add_all(n, scene.render)
         sink.close()
         timings.update(sink.timings_s)
     finally:

@@ -11,22 +11,43 @@ from pathlib import Path
 
 from tattotronix.io.jsontypes import JsonDict, JsonValue
 from tattotronix.studies import approach, control, rate, resample, timelaw
-from tattotronix.studies.base import ClosedLoopStudy
+from tattotronix.studies.base import Cases, ClosedLoopStudy
 
-__all__ = ["STUDIES", "study_figures", "study_summary"]
+__all__ = ["STUDIES", "Loaded", "format_summary", "load_studies", "study_curves",
+           "study_figures", "study_summary"]
 
 #: study name -> study, in the order the figures are drawn and summarised
 STUDIES: dict[str, ClosedLoopStudy] = {
     m.STUDY.name: m.STUDY for m in (control, approach, resample, rate, timelaw)}
 
 
-def study_figures(data: Path, name: str, folder: Path,
-                  tmp: Callable[[Path], Path] | None = None) -> dict[str, Path]:
-    """Draw every closed-loop study's figure that has cases on ``name``.
+#: each study with cases on one artwork: study name -> (the study, its cases)
+Loaded = dict[str, tuple[ClosedLoopStudy, Cases]]
+
+
+def load_studies(data: Path, name: str) -> Loaded:
+    """Read the cases of every closed-loop study on ``name`` once (those with none are
+    left out), for :func:`study_figures`, :func:`study_summary` and :func:`study_curves`.
 
     Args:
         data: the data folder.
         name: the artwork.
+    """
+    loaded: Loaded = {}
+    for study in STUDIES.values():
+        cases = study.load_cases(data, name)
+        if cases:
+            loaded[study.name] = (study, cases)
+    return loaded
+
+
+def study_figures(loaded: Loaded, name: str, folder: Path,
+                  tmp: Callable[[Path], Path] | None = None) -> dict[str, Path]:
+    """Draw each loaded study's figure.
+
+    Args:
+        loaded: :func:`load_studies`.
+        name: the artwork (the figures' titles).
         folder: where the PNGs go (``<study>.png``).
         tmp: maps a target path to the path to write (``Outputs.tmp_path``); default:
             write the target itself.
@@ -35,36 +56,23 @@ def study_figures(data: Path, name: str, folder: Path,
         study -> the target path written.
     """
     written: dict[str, Path] = {}
-    for study in STUDIES.values():
-        cases = study.load_cases(data, name)
-        if not cases:
-            continue
+    for study, cases in loaded.values():
         target = folder / f"{study.name}.png"
         study.figure(cases, tmp(target) if tmp is not None else target, name)
         written[study.name] = target
     return written
 
 
-def study_summary(data: Path, name: str) -> JsonDict:
-    """What each closed-loop study with cases on ``name`` concludes (study -> its
+def study_summary(loaded: Loaded) -> JsonDict:
+    """What each loaded study concludes (study -> its
     :meth:`~tattotronix.studies.base.ClosedLoopStudy.summary`; JSON-ready)."""
-    out: JsonDict = {}
-    for study in STUDIES.values():
-        cases = study.load_cases(data, name)
-        if cases:
-            out[study.name] = study.summary(cases)
-    return out
+    return {study.name: study.summary(cases) for study, cases in loaded.values()}
 
 
-def study_curves(data: Path, name: str) -> dict[str, list[dict[str, JsonValue]]]:
-    """Each closed-loop study's curve on ``name`` (study -> its
+def study_curves(loaded: Loaded) -> dict[str, list[dict[str, JsonValue]]]:
+    """Each loaded study's curve (study -> its
     :meth:`~tattotronix.studies.base.ClosedLoopStudy.curve` rows), for ``dvc plots``."""
-    out: dict[str, list[dict[str, JsonValue]]] = {}
-    for study in STUDIES.values():
-        cases = study.load_cases(data, name)
-        if cases:
-            out[study.name] = study.curve(cases)
-    return out
+    return {study.name: study.curve(cases) for study, cases in loaded.values()}
 
 
 def format_summary(conclusions: JsonValue) -> str:
