@@ -1,6 +1,6 @@
 """Stage `draw` (and DVC's `simulate`): play a drawing on a plant, closed loop.
 
-    python stages/draw.py backend=mujoco|pybullet|model art=NAME [speed=S]
+    python stages/draw.py backend=mujoco|pybullet|model|servo art=NAME [speed=S]
         [controller.wn=160 controller.rate_hz=1000 controller.structure=pid_g_v]
         [window=[start_s,length_s] | window=busiest] [viewer=true]
     python stages/draw.py artwork.source=PATH ...     # plans the drawing first, in memory
@@ -19,6 +19,7 @@ from __future__ import annotations
 from tattotronix.config.schema import Config
 from tattotronix.control.drawing import draw_simulated
 from tattotronix.hardware.arm import draw_on_arm
+from tattotronix.hardware.servo_loop import draw_on_servos
 from tattotronix.io.outputs import Outputs
 from tattotronix.stage import run_stage
 
@@ -27,6 +28,8 @@ def main(cfg: Config, out: Outputs) -> None:
     """Draw on the configured backend."""
     if cfg.backend.name == "arm":
         draw_on_arm(cfg, out)
+    elif cfg.backend.name == "servo":
+        draw_on_servos(cfg, out)
     else:
         draw_simulated(cfg, out)
 

@@ -392,13 +392,39 @@ class BenchConfig:
                                 hi=REACH_M, unit="m")
 
 
+class ServoCommand(Enum):
+    """How a catalogue servo is commanded: a PWM pulse (through the PCA9685) or a serial bus
+    with an encoder (a position in encoder steps)."""
+
+    pwm = "pwm"
+    bus = "bus"
+
+
 @settings
 class ServoConfig:
-    """A catalogue hobby servo: mass (kg), body box (m), dead band (us)."""
+    """A catalogue servo: its mass and body (the mass model) and how it behaves (the servo
+    plant; docs/servos.md gives each figure's source).
+
+    The servo's own loop (docs/servos.md, "The servo model"): the drive saturates at
+    ``stall_nm`` once the error exceeds ``band_deg``, and back-EMF limits the no-load speed
+    to ``speed_rad_s``; it rests anywhere within half its dead band of the command; the
+    gears have ``backlash_deg`` of play; its pulse-to-angle map bends by up to
+    ``nonlinearity_deg`` off the straight line; it acts ``latency_ms`` after a pulse.
+    A ``bus`` servo takes positions in steps of ``step_deg`` and holds within one step.
+    """
 
     mass: float = bounded(MISSING, lo=0, lo_open=True, hi=10, unit="kg")
     size: list[float] = bounded(MISSING, lo=0, lo_open=True, hi=1, unit="m")
     deadband_us: float = bounded(MISSING, lo=0, hi=1000, unit="us")
+    command: ServoCommand = ServoCommand.pwm
+    stall_nm: float = bounded(MISSING, lo=0, lo_open=True, hi=100, unit="N m")
+    speed_rad_s: float = bounded(MISSING, lo=0, lo_open=True, hi=1000, unit="rad/s")
+    band_deg: float = bounded(MISSING, lo=0, lo_open=True, hi=90, unit="deg")
+    backlash_deg: float = bounded(MISSING, lo=0, hi=45, unit="deg")
+    nonlinearity_deg: float = bounded(MISSING, lo=0, hi=45, unit="deg")
+    armature_kgm2: float = bounded(MISSING, lo=0, hi=1, unit="kg m^2")
+    latency_ms: float = bounded(MISSING, lo=0, hi=1000, unit="ms")
+    step_deg: float = bounded(0.0, lo=0, hi=10, unit="deg")  # bus servos: one encoder step
 
 
 @settings
@@ -651,6 +677,7 @@ class Backend(Enum):
     mujoco = "mujoco"
     pybullet = "pybullet"
     model = "model"
+    servo = "servo"
     arm = "arm"
 
 
@@ -688,6 +715,39 @@ class PlantConfig:
 
 
 @settings
+class ServoPlantConfig:
+    """The servo plant (``backend=servo``; docs/servos.md): the arm on hobby servos playing
+    the servo program. Each imperfection can be switched off; with all off and
+    ``quantise=false`` it is an ideal position servo following the program's angles."""
+
+    # the servo type on every joint (a robot.servos name); null: as mounted (servo_mounts)
+    type: str | None = None
+    quantise: bool = True  # the PCA9685's counts (a bus servo's steps); false: exact angles
+    deadband: bool = True  # the servo rests anywhere within half its dead band
+    backlash: bool = True  # the gears' play between the servo and the link
+    nonlinearity: bool = True  # the servo's pulse-to-angle map bends off the straight line
+    lag: bool = True  # frame hold, latency, stall torque and speed limit (false: stiff, exact)
+    # the simulated calibration (servo_pulse's procedure): widths measured per servo
+    fit_points: int = bounded(9, lo=2, hi=200)
+    fit_order: int = bounded(3, lo=1, hi=7)
+    protractor_deg: float = bounded(0.5, lo=0, hi=10, unit="deg")  # reading resolution
+    # the stiff loop of lag=false, rad/s
+    ideal_wn: float = bounded(300.0, lo=1, lo_open=False, hi=10_000, unit="rad/s")
+
+
+@settings
+class CompensateConfig:
+    """What the servo program corrects for (``deploy``, the real arm and the servo plant;
+    docs/servos.md, "Calibration that fixes what it can"). The amounts are the mounted
+    servos' catalogue figures (``robot.servos``); the pulse-map fit comes from the
+    calibration's measured points (``stages/servo_pulse.py record=...``)."""
+
+    fit: bool = False  # the servo plant: measure each servo first, deploy through the fit
+    backlash: bool = False  # every joint arrives moving one way; reversals pre-load the play
+    deadband: bool = False  # counts pushed past the dead band, so each move lands
+
+
+@settings
 class DrawConfig:
     """Error bookkeeping and the ink image of a simulated drawing (docs/original.md, "5.5
     Tracking error"; docs/control.md, "Ink against the plan")."""
@@ -721,6 +781,7 @@ class HardwareConfig:
     save_every_s: float = bounded(1.0, lo=0, lo_open=True, hi=3600, unit="s")
     # dry-run fault injection: the bus fails after N
     fail_after_writes: int | None = bounded(None, lo=0, hi=1_000_000_000)
+    compensate: CompensateConfig = field(default_factory=CompensateConfig)
 
 
 @settings
@@ -759,6 +820,28 @@ class ControlStudyConfig:
     """
 
     cases: dict[str, ControlCase] = MISSING
+
+
+@settings
+class ServoCase:
+    """One run of the servo study (docs/servos.md, "The servo study"): which servos, which
+    corrections, at which speed; ``only`` keeps one imperfection of the servo plant
+    (``quantise``, ``deadband``, ``backlash``, ``nonlinearity`` or ``lag``) and switches
+    the others off."""
+
+    type: str | None = None  # a robot.servos name on every joint; null: as mounted
+    fit: bool = False
+    backlash: bool = False
+    deadband: bool = False
+    speed: float = bounded(1.0, lo=0.01, hi=1000)
+    only: str | None = None
+
+
+@settings
+class ServoStudyConfig:
+    """The servo study's cases: name -> :class:`ServoCase` (named as the study names it)."""
+
+    cases: dict[str, ServoCase] = MISSING
 
 
 @settings
@@ -845,6 +928,7 @@ class StudyConfig:
     timelaw_jerk_rad_s3: list[int] = bounded(factory=lambda: [500, 2000], lo=1,
                                              hi=1_000_000, unit="rad/s^3")
     actuator: ActuatorStudyConfig = field(default_factory=ActuatorStudyConfig)
+    servo: ServoStudyConfig = field(default_factory=ServoStudyConfig)
     fills: FillsStudyConfig = field(default_factory=FillsStudyConfig)
 
 
@@ -872,6 +956,7 @@ class Config:
     controller: ControllerConfig = field(default_factory=ControllerConfig)
     plant: PlantConfig = field(default_factory=PlantConfig)
     draw: DrawConfig = field(default_factory=DrawConfig)
+    servo: ServoPlantConfig = field(default_factory=ServoPlantConfig)
     # rescales the motion: 2 draws twice as fast (marking at 2x feed)
     speed: float = bounded(1.0, lo=0.01, hi=1000)
     backend: Backend = Backend.mujoco  # draw.py: the plant
@@ -900,6 +985,7 @@ SCHEMAS: dict[str, type] = {
     "controller": ControllerConfig,
     "plant": PlantConfig,
     "draw": DrawConfig,
+    "servo": ServoPlantConfig,
     "hardware": HardwareConfig,
 }
 

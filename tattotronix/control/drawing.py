@@ -28,10 +28,16 @@ from numpy.typing import NDArray
 from tattotronix.art.artwork import BUILTINS, artwork_name
 from tattotronix.art.grid import InkMask
 from tattotronix.config.schema import Config, to_dict
-from tattotronix.control.analysis import LoopReport, loop_report
+from tattotronix.control.analysis import loop_report
 from tattotronix.control.controller import Controller, Gains
 from tattotronix.control.dynamics import Dynamics
-from tattotronix.control.ink import compare_ink, ink_grid, rasterise_ink
+from tattotronix.control.ink import (
+    InkComparison,
+    InkGrid,
+    compare_ink,
+    ink_grid,
+    rasterise_ink,
+)
 from tattotronix.control.reference import reference_at_ticks, resolve_window
 from tattotronix.control.simulate import Loop, Run, simulate, substeps_per_tick
 from tattotronix.control.tracking import TrackingErrors, tracking_errors
@@ -61,7 +67,8 @@ from tattotronix.robot.description import RobotDescription, build_description
 from tattotronix.trajectory import JointPath, load_trajectory
 
 __all__ = ["MAX_TICKS", "ClosedLoop", "Drawing", "available_drawings", "check_tick_budget",
-           "draw_simulated", "resolve_drawing", "run_closed_loop", "warm_up"]
+           "draw_simulated", "resolve_drawing", "run_closed_loop", "score_and_write",
+           "score_ink", "warm_up"]
 
 log = logging.getLogger("tattotronix.draw")
 Array = NDArray[np.float64]
@@ -235,22 +242,28 @@ class ClosedLoop:
     Attributes:
         drawing: what was played.
         run: the run (ticks, torques, verdict).
-        controller: the controller that ran it.
-        analysis: the loop analysis at the tuning pose (:func:`loop_report`).
+        controller: what closed the loop (``Controller.summary()``, or the servos').
+        analysis: the loop analysis at the tuning pose (:func:`loop_report`; the servo
+            plant's is its servos' figures).
         window: ``(start_s, end_s)`` of the stretch that ran.
         sample_every: ticks between error samples.
         backend: the plant.
         plant_dt_s: the plant's integration step, s.
+        wn: the loop's bandwidth, rad/s ("settled" drops ``settle_periods / wn`` after
+            each needle entry).
+        period_s: the tick, s.
     """
 
     drawing: Drawing
     run: Run
-    controller: Controller
-    analysis: LoopReport
+    controller: JsonDict
+    analysis: Mapping[str, Any]
     window: tuple[float, float]
     sample_every: int
     backend: str
     plant_dt_s: float
+    wn: float
+    period_s: float
 
     def samples(self) -> NDArray[np.intp]:
         """Tick indices of the error samples."""
@@ -272,7 +285,7 @@ class ClosedLoop:
         else:
             tip, tip_ref = tips[0][idx], tips[1][idx]
         return tracking_errors(self.run.t[idx], tip, tip_ref, self.drawing.t,
-                               self.drawing.kind, self.controller.gains.wn, settle_periods)
+                               self.drawing.kind, self.wn, settle_periods)
 
     def metrics(self, err: TrackingErrors) -> JsonDict:
         """Tracking, verdict, controller, plant and loop analysis: plain JSON values."""
@@ -282,9 +295,9 @@ class ClosedLoop:
             "window_s": [self.window[0], self.window[1] - self.window[0]],
             **err.metrics(),
             **self.run.summary(),  # peak torque, verdict, real-time factor, wall/sim time
-            "controller": self.controller.summary(),
+            "controller": self.controller,
             "loop": self.analysis,
-            "sample_s": self.sample_every * self.controller.period_s,
+            "sample_s": self.sample_every * self.period_s,
         })
 
 
@@ -333,6 +346,9 @@ def run_closed_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Dr
         TattotronixError: missing models, a bad rate, tuning pose or window.
     """
     backend = cfg.backend.name
+    if backend == "servo":
+        raise TattotronixError("the servo plant plays the servo program, not this loop: "
+                               "use tattotronix.hardware.servo_loop.run_servo_loop")
     urdf = data / "robot" / f"{desc.name}.urdf"
     mjcf = data / "robot" / f"{desc.name}.xml"
     for f in (urdf, mjcf):
@@ -376,8 +392,8 @@ def run_closed_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Dr
                            viewer=viewer, loop=loop)
     finally:
         bar.close()
-    return ClosedLoop(drawing, run, controller, analysis, (start, end), sample_every,
-                      backend, settings.dt_s)
+    return ClosedLoop(drawing, run, controller.summary(), analysis, (start, end),
+                      sample_every, backend, settings.dt_s, gains.wn, controller.period_s)
 
 
 def warm_up() -> None:
@@ -402,10 +418,10 @@ def draw_simulated(cfg: Config, out: Outputs) -> JsonDict:
     drawing = resolve_drawing(cfg, out.data, desc)
     loop = run_closed_loop(cfg, out.data, desc, drawing, window=cfg.window,
                            progress=bool(cfg.draw.progress), viewer=bool(cfg.viewer))
-    return _score_and_write(cfg, out, loop, desc)
+    return score_and_write(cfg, out, loop, desc)
 
 
-def _score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
+def score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
                      desc: RobotDescription) -> dict[str, Any]:
     run, drawing, backend = loop.run, loop.drawing, loop.backend
     # the jobs of a multirun (draw.py -m controller.wn=40,80) each get their own outputs
@@ -417,15 +433,11 @@ def _score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
     tip_ref, _ = chain.fk(run.ref.q[:k]) if k else (np.zeros((0, 3)), None)
     idx = loop.samples()
     err = loop.errors(chain, float(cfg.draw.settle_periods), (tip, tip_ref))
-    origin = np.asarray(cfg.toolpath.panel_origin, dtype=np.float64)
     res = float(cfg.draw.ink_res_mm)
     mask = _artwork_mask(cfg, out.data, drawing)
     corners = None if mask is None else np.array([[mask.xs[0], mask.ys[0]],
                                                   [mask.xs[-1], mask.ys[-1]]])
-    grid = ink_grid([tip, tip_ref], origin, res, cover_mm=corners)
-    sim_ink = rasterise_ink(tip, origin, grid, float(cfg.toolpath.needle_width_mm))
-    plan_ink = rasterise_ink(tip_ref, origin, grid, float(cfg.toolpath.needle_width_mm))
-    ink = compare_ink(sim_ink, plan_ink, res)
+    grid, sim_ink, plan_ink, ink = score_ink(cfg, tip, tip_ref, corners)
     against_art: dict[str, Any] = {"artwork": None, "artwork_plan": None}
     art = None if mask is None else artwork_on(mask, grid)
     sim_art = None
@@ -474,6 +486,24 @@ def _score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
              _fmt(metrics["settled_max_um"]), _fmt(metrics["marking_max_um"]),
              run.peak_torque_nm, ink.iou, run.realtime_factor, run.wall_s, run.loop)
     return metrics
+
+
+def score_ink(cfg: Config, tip: Array, tip_ref: Array, corners: Array | None = None
+              ) -> tuple[InkGrid, NDArray[np.bool_], NDArray[np.bool_], InkComparison]:
+    """The simulated and the planned ink of a run on one grid, and how they compare.
+
+    Args:
+        cfg: the settings (the panel's origin, the needle's width, the ink pixel).
+        tip, tip_ref: the simulated and the planned tip at every tick, m.
+        corners: panel points the grid must also cover (the artwork's corners), mm.
+    """
+    origin = np.asarray(cfg.toolpath.panel_origin, dtype=np.float64)
+    res = float(cfg.draw.ink_res_mm)
+    needle = float(cfg.toolpath.needle_width_mm)
+    grid = ink_grid([tip, tip_ref], origin, res, cover_mm=corners)
+    sim_ink = rasterise_ink(tip, origin, grid, needle)
+    plan_ink = rasterise_ink(tip_ref, origin, grid, needle)
+    return grid, sim_ink, plan_ink, compare_ink(sim_ink, plan_ink, res)
 
 
 def _planned_lines(data: Path, drawing: Drawing) -> tuple[list[Array], list[float]] | None:

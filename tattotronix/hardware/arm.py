@@ -53,7 +53,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from types import FrameType
@@ -67,6 +67,7 @@ from tattotronix.errors import TattotronixError
 from tattotronix.hardware.pca9685 import PCA9685, BusError, RecordingBus, SMBusLike, open_bus
 from tattotronix.hardware.preview import preview_of
 from tattotronix.hardware.program import ServoProgram
+from tattotronix.hardware.servo_model import ServoSpec
 from tattotronix.hardware.servos import Calibration, load_calibration
 from tattotronix.io.artifacts import run_dir, run_label
 from tattotronix.io.jsontypes import JsonDict
@@ -791,14 +792,37 @@ class ArmSession:
         return summary
 
 
-def build_program(cfg: Config, desc: RobotDescription, t: Array, q: Array, qd: Array
+def build_program(cfg: Config, desc: RobotDescription, t: Array, q: Array, qd: Array,
+                  calib: Calibration | None = None,
+                  servos: Sequence[ServoSpec] | None = None
                   ) -> tuple[ServoProgram, Calibration]:
-    """The calibration from the config and the program of a timed drawing."""
-    from tattotronix.hardware.program import compile_program
+    """The program of a timed drawing, with the servo corrections ``hardware.compensate``
+    switches on.
 
-    calib = calibration_from_config(cfg.hardware, desc.joint_names)
+    Args:
+        cfg: the settings.
+        desc: the robot description (joint ranges and velocity limits).
+        t, q, qd: the drawing.
+        calib: the calibration (default: from the config).
+        servos: the servos the corrections are sized for (default: as mounted, from the
+            catalogue, :func:`~tattotronix.hardware.servo_model.joint_servos`).
+    """
+    from tattotronix.config.schema import ServoPlantConfig
+    from tattotronix.hardware.program import compile_program
+    from tattotronix.hardware.servo_model import compensate, joint_servos
+
+    if calib is None:
+        calib = calibration_from_config(cfg.hardware, desc.joint_names)
+    comp = cfg.hardware.compensate
+    adjust = None
+    if comp.backlash or comp.deadband:
+        specs = tuple(servos) if servos is not None else joint_servos(
+            cfg.robot, desc.joint_names, calib, ServoPlantConfig())
+
+        def adjust(qf: Array) -> Array:
+            return compensate(qf, specs, comp)
     program = compile_program(t, q, qd, calib, desc.lower, desc.upper,
-                              [j.velocity for j in desc.joints])
+                              [j.velocity for j in desc.joints], adjust)
     return program, calib
 
 

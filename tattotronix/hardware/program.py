@@ -5,7 +5,10 @@ Steps (``deploy`` stage; ``draw.py backend=arm`` compiles the same way):
 1. Sample the trajectory's C1 Hermite reference at every frame, ``t_i = i / frame_hz``.
 2. Clamp each joint to its range, then limit every frame-to-frame change to the joint's
    velocity limit times the frame period (so nothing is commanded faster than allowed).
-3. Each servo's pulse: ``clamp(zero_us + us_per_rad q, min_us, max_us)``, rounded to the
+3. Optionally, the servo corrections (``hardware.compensate``; backlash and dead band,
+   :func:`tattotronix.hardware.servo_model.compensate`) move each frame's angle.
+4. Each servo's pulse: ``clamp(zero_us + us_per_rad q, min_us, max_us)`` (or the inverse
+   of the calibration's measured fit, where it has one), rounded to the
    board's count (``(prescale + 1) / oscillator``, 4.88 us at 50 Hz), never outside the
    calibrated limits (:meth:`tattotronix.hardware.servos.Calibration.counts`).
 
@@ -18,6 +21,7 @@ from __future__ import annotations
 
 import hashlib
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -65,6 +69,8 @@ class ServoProgram:
     Attributes:
         t: (F,) frame times, s.
         q: (F, n) commanded joint angles after the range and rate clamps, rad.
+        q_sent: (F, n) the angles the counts are made of (``q`` after the servo
+            corrections; ``q`` itself when there are none), rad.
         counts: (F, C) off counts per channel (columns in ``channels`` order).
         channels: the driven channels.
         frame_hz: frames per second.
@@ -81,6 +87,7 @@ class ServoProgram:
     count_us: float
     range_clamped: int
     rate_clamped: int
+    q_sent: Array | None = None
 
     @property
     def frames(self) -> int:
@@ -137,7 +144,8 @@ class ServoProgram:
 
 
 def compile_program(t: Array, q: Array, qd: Array, calib: Calibration, lower: ArrayLike,
-                    upper: ArrayLike, velocity: ArrayLike) -> ServoProgram:
+                    upper: ArrayLike, velocity: ArrayLike,
+                    adjust: Callable[[Array], Array] | None = None) -> ServoProgram:
     """Compile a timed joint trajectory into the servo program (see the module docstring).
 
     Args:
@@ -145,6 +153,7 @@ def compile_program(t: Array, q: Array, qd: Array, calib: Calibration, lower: Ar
         calib: the servo calibration (board settings included).
         lower, upper: joint ranges, rad.
         velocity: joint velocity limits, rad/s.
+        adjust: the servo corrections, (F, n) frame angles -> the angles to send.
     """
     frame_hz = float(calib.frame_hz)
     count_us = count_period_us(frame_hz, calib.oscillator_hz)
@@ -156,9 +165,10 @@ def compile_program(t: Array, q: Array, qd: Array, calib: Calibration, lower: Ar
     qf = np.clip(qf, lo, hi)
     max_step = np.asarray(velocity, dtype=np.float64) / frame_hz
     qf, rate_clamped = rate_clamp(qf, qf[0], max_step)
+    sent = qf if adjust is None else adjust(qf)
     channels = calib.channels()
     counts = np.array([[c[ch] for ch in channels] for c in
-                       (calib.counts(row, count_us) for row in qf)], dtype=np.int64)
+                       (calib.counts(row, count_us) for row in sent)], dtype=np.int64)
     return ServoProgram(t=tf, q=qf, counts=counts, channels=channels, frame_hz=frame_hz,
                         count_us=count_us, range_clamped=range_clamped,
-                        rate_clamped=rate_clamped)
+                        rate_clamped=rate_clamped, q_sent=sent)

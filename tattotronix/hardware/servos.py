@@ -24,6 +24,13 @@ A calibration file (``servo_calibration.yaml``)::
       ...
     tool: {channel: 6}
 
+A joint may also hold the pairs its servo was **measured** at (``stages/servo_pulse.py
+joint=NAME record=FILE``): ``points: [[width_us, angle_deg], ...]``. Then servo A's
+pulse-to-angle map is the least-squares polynomial of order ``fit_order`` (default 3,
+lowered to the points' count less one) through them, and ``deploy`` inverts it
+(:class:`PulseFit`); the straight line (``zero_us``, ``us_per_rad``) still names the joint
+angle a count stands for in reports, and the twin servo B stays linear.
+
 :meth:`Calibration.from_mapping` checks every key and value and reports **all** problems
 in one :class:`CalibrationError`, each naming the joint and the key. The limits must lie
 within the 400...2600 us a hobby servo accepts (``HOBBY_MIN_US``, ``HOBBY_MAX_US``; the
@@ -41,7 +48,7 @@ import difflib
 import math
 import numbers
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -58,6 +65,7 @@ __all__ = [
     "HOBBY_MAX_US",
     "HOBBY_MIN_US",
     "JointServo",
+    "PulseFit",
     "ServoChannel",
     "default_calibration",
     "default_calibration_mapping",
@@ -78,6 +86,8 @@ HOBBY_MAX_US = 2600.0
 
 JOINT_KEYS_A = ("channel", "zero_us", "us_per_rad", "min_us", "max_us")
 JOINT_KEYS_B = ("channel_b", "zero_us_b", "us_per_rad_b")
+JOINT_KEYS_FIT = ("points", "fit_order")
+DEFAULT_FIT_ORDER = 3
 TOP_KEYS = ("device", "address", "frame_hz", "oscillator_hz", "joints", "tool")
 TOOL_KEYS = ("channel",)
 MAX_OSCILLATOR_HZ = 50e6  # datasheet: EXTCLK up to 50 MHz
@@ -248,6 +258,77 @@ def _board_problems(
 
 
 @dataclass(frozen=True)
+class PulseFit:
+    """A servo's measured pulse-to-angle map: the least-squares polynomial through the
+    ``(width_us, angle_deg)`` pairs the calibration recorded, and its inverse.
+
+    Attributes:
+        points: the measured pairs, widths strictly increasing after sorting.
+        order: the polynomial's order (at most ``len(points) - 1``).
+
+    Raises:
+        CalibrationError: fewer than two points, a repeated width, or a fit that does not
+            turn one way over the measured widths (it could not be inverted).
+    """
+
+    points: tuple[tuple[float, float], ...]
+    order: int = DEFAULT_FIT_ORDER
+
+    def __post_init__(self) -> None:
+        pts = sorted((float(w), float(a)) for w, a in self.points)
+        problems: list[str] = []
+        widths = [w for w, _ in pts]
+        if len(pts) < 2:
+            problems.append(f"points: {len(pts)} measured pair(s): measure at least two widths")
+        elif len(set(widths)) != len(widths):
+            problems.append("points: a width is measured twice: keep one angle per width")
+        if problems:
+            raise CalibrationError(problems)
+        order = max(1, min(int(self.order), len(pts) - 1))
+        object.__setattr__(self, "points", tuple(pts))
+        object.__setattr__(self, "order", order)
+        w = np.array(widths)
+        object.__setattr__(self, "_centre", float(w.mean()))
+        coef = np.polyfit(w - self._centre, np.radians([a for _, a in pts]), order)
+        object.__setattr__(self, "_coef", coef)
+        grid = np.linspace(w[0], w[-1], 4001)
+        ang = np.polyval(coef, grid - self._centre)
+        steps = np.diff(ang)
+        if not (np.all(steps > 0) or np.all(steps < 0)):
+            raise CalibrationError([
+                f"points: the order-{order} fit through the measured pairs turns back between "
+                f"{w[0]:g} and {w[-1]:g} us, so it has no inverse: lower fit_order or "
+                "re-measure"])
+        if steps[0] < 0:
+            grid, ang = grid[::-1], ang[::-1]
+        object.__setattr__(self, "_table", (ang, grid))
+
+    _centre: float = field(init=False, repr=False, compare=False, default=0.0)
+
+    @property
+    def span_us(self) -> tuple[float, float]:
+        """The measured widths' range, us."""
+        return self.points[0][0], self.points[-1][0]
+
+    def angle(self, pulse_us: np.ndarray | float) -> np.ndarray:
+        """The fitted angle (rad) of pulse widths (us)."""
+        coef = self._coef  # type: ignore[attr-defined]
+        return np.asarray(np.polyval(coef, np.asarray(pulse_us, dtype=float) - self._centre))
+
+    def pulse_us(self, angle_rad: np.ndarray | float) -> np.ndarray:
+        """The width (us) the fit maps to each angle (rad): the inverse, clamped to the
+        measured widths (no extrapolation)."""
+        ang, grid = self._table  # type: ignore[attr-defined]
+        return np.asarray(np.interp(np.asarray(angle_rad, dtype=float), ang, grid))
+
+    def residual_deg(self) -> float:
+        """The largest distance of a measured angle from the fit, deg."""
+        w = np.array([p[0] for p in self.points])
+        a = np.array([p[1] for p in self.points])
+        return float(np.max(np.abs(np.degrees(self.angle(w)) - a)))
+
+
+@dataclass(frozen=True)
 class ServoChannel:
     """One servo on one PCA9685 output and its linear pulse mapping.
 
@@ -269,6 +350,7 @@ class ServoChannel:
     us_per_rad: float
     min_us: float
     max_us: float
+    fit: PulseFit | None = None
 
     def __post_init__(self) -> None:
         problems = _servo_problems(
@@ -287,6 +369,9 @@ class ServoChannel:
         """
         if math.isnan(angle_rad):
             raise ValueError(f"servo on channel {self.channel}: angle is NaN")
+        if self.fit is not None:
+            pulse = float(self.fit.pulse_us(max(-1e3, min(1e3, float(angle_rad)))))
+            return min(self.max_us, max(self.min_us, pulse))
         pulse = self.zero_us + self.us_per_rad * float(angle_rad)
         if math.isnan(pulse):  # 0 * inf cannot happen (us_per_rad != 0); kept for safety
             raise ValueError(f"servo on channel {self.channel}: angle {angle_rad} gives NaN")
@@ -600,7 +685,7 @@ class Calibration:
         for name in joint_names:
             v = parsed[name]
             a = ServoChannel(v["channel"], v["zero_us"], v["us_per_rad"], v["min_us"],
-                             v["max_us"])
+                             v["max_us"], v.get("fit"))
             b = None
             if "channel_b" in v:
                 b = ServoChannel(v["channel_b"], v["zero_us_b"], v["us_per_rad_b"],
@@ -623,6 +708,9 @@ class Calibration:
             if j.b is not None:
                 entry.update(channel_b=j.b.channel, zero_us_b=j.b.zero_us,
                              us_per_rad_b=j.b.us_per_rad)
+            if j.a.fit is not None:
+                entry.update(points=[list(p) for p in j.a.fit.points],
+                             fit_order=j.a.fit.order)
             joints[j.joint] = entry
         out: dict[str, Any] = {
             "device": self.device, "address": self.address, "frame_hz": self.frame_hz,
@@ -728,7 +816,7 @@ def _joint_values(name: str, entry: Any, problems: list[str]) -> dict[str, Any] 
             f"{entry!r}"
         )
         return None
-    _unknown_keys(entry, JOINT_KEYS_A + JOINT_KEYS_B, f"{name}.", problems)
+    _unknown_keys(entry, JOINT_KEYS_A + JOINT_KEYS_B + JOINT_KEYS_FIT, f"{name}.", problems)
     keys = list(JOINT_KEYS_A)
     if any(k in entry for k in JOINT_KEYS_B):
         keys += JOINT_KEYS_B
@@ -744,7 +832,38 @@ def _joint_values(name: str, entry: Any, problems: list[str]) -> dict[str, Any] 
             values[key] = _integer(entry[key], where, problems)
         else:
             values[key] = _number(entry[key], where, problems)
+    if "points" in entry:
+        values["fit"] = _fit(name, entry["points"], entry.get("fit_order", DEFAULT_FIT_ORDER),
+                             problems)
     return values
+
+
+def _fit(name: str, points: Any, order: Any, problems: list[str]) -> PulseFit | None:
+    """A joint's measured pairs as a :class:`PulseFit` (None and a problem if they are bad)."""
+    where = f"{name}.points"
+    if not isinstance(points, Sequence) or isinstance(points, str) or not all(
+            isinstance(p, Sequence) and not isinstance(p, str) and len(p) == 2
+            for p in points):
+        problems.append(f"{where}: expected a list of [width_us, angle_deg] pairs, got "
+                        f"{points!r}")
+        return None
+    pairs = []
+    for i, (w, a) in enumerate(points):
+        wv = _number(w, f"{where}[{i}] width", problems)
+        av = _number(a, f"{where}[{i}] angle", problems)
+        if wv is not None and av is not None:
+            pairs.append((wv, av))
+    k = _integer(order, f"{name}.fit_order", problems)
+    if len(pairs) != len(points) or k is None:
+        return None
+    if not 1 <= k <= 7:
+        problems.append(f"{name}.fit_order: {k} must be 1...7")
+        return None
+    try:
+        return PulseFit(tuple(pairs), k)
+    except CalibrationError as exc:
+        problems += [f"{name}.{p}" for p in exc.problems]
+        return None
 
 
 def default_calibration_mapping() -> JsonDict:

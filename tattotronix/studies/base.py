@@ -76,6 +76,7 @@ from tattotronix.control.drawing import (
 )
 from tattotronix.control.tracking import entry_times
 from tattotronix.errors import ConfigError, TattotronixError
+from tattotronix.hardware.servo_loop import run_servo_loop
 from tattotronix.io.artifacts import StudySeriesRecord, make_provenance
 from tattotronix.io.jsontypes import JsonDict, JsonValue
 from tattotronix.io.outputs import Outputs
@@ -230,7 +231,7 @@ class ClosedLoopStudy(ABC):
         starts the longest first, so no long case is left alone at the end."""
         return 1.0
 
-    def window_metrics(self, loop: ClosedLoop) -> JsonDict:
+    def window_metrics(self, cfg: Config, loop: ClosedLoop) -> JsonDict:
         """Metrics added to each window's (empty by default)."""
         return {}
 
@@ -294,14 +295,19 @@ class ClosedLoopStudy(ABC):
         controller: JsonDict = {}
         for window in self.windows:
             label = "whole" if window is None else str(window)
-            loop = run_closed_loop(cfg, data, desc, drawing, window=window,
-                                   plant_dt_s=plant_dt, progress=bool(cfg.draw.progress))
+            if cfg.backend.name == "servo":  # the servos close their own loops
+                loop = run_servo_loop(cfg, data, desc, drawing, window=window,
+                                      plant_dt_s=plant_dt, progress=bool(cfg.draw.progress))
+            else:
+                loop = run_closed_loop(cfg, data, desc, drawing, window=window,
+                                       plant_dt_s=plant_dt,
+                                       progress=bool(cfg.draw.progress))
             m, s = _window_metrics(loop, chain, settle)
-            m.update(self.window_metrics(loop))
+            m.update(self.window_metrics(cfg, loop))
             windows[label] = m
             series.update({f"{label}_{k}": v for k, v in s.items()})
             if not analysis:  # the loop facts of the first window (the whole drawing)
-                analysis, controller = loop.analysis, loop.controller.summary()
+                analysis, controller = loop.analysis, loop.controller
             log.info("%s %s %s (%s): %s; settled %s / marking max %s um, peak %.3f N m "
                      "(%s loop, %.0fx real time)", self.name, name, case, label,
                      m["verdict"], _fmt(m["settled_mean_um"]), _fmt(m["marking_max_um"]),

@@ -68,7 +68,7 @@ class RateStudy(ClosedLoopStudy):
         # the plant's steps are the same in every case; the controller ticks in Python
         return float(cfg.controller.rate_hz)
 
-    def window_metrics(self, loop: ClosedLoop) -> JsonDict:
+    def window_metrics(self, cfg: Config, loop: ClosedLoop) -> JsonDict:
         return {"boundary": rate_verdict_check(loop)}
 
     def case_metrics(self, cfg: Config, name: str,

@@ -10,7 +10,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from tattotronix.io.jsontypes import JsonDict, JsonValue
-from tattotronix.studies import approach, control, rate, resample, timelaw
+from tattotronix.studies import approach, control, rate, resample, servo, timelaw
 from tattotronix.studies.base import Cases, ClosedLoopStudy
 
 __all__ = ["STUDIES", "Loaded", "format_summary", "load_studies", "study_curves",
@@ -18,7 +18,7 @@ __all__ = ["STUDIES", "Loaded", "format_summary", "load_studies", "study_curves"
 
 #: study name -> study, in the order the figures are drawn and summarised
 STUDIES: dict[str, ClosedLoopStudy] = {
-    m.STUDY.name: m.STUDY for m in (control, approach, resample, rate, timelaw)}
+    m.STUDY.name: m.STUDY for m in (control, approach, resample, rate, timelaw, servo)}
 
 
 #: each study with cases on one artwork: study name -> (the study, its cases)

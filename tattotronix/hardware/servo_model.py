@@ -1,0 +1,168 @@
+"""How a hobby servo turns a command into a joint angle, and what the servo program can do
+about it (docs/servos.md).
+
+A servo is described by its catalogue entry (``robot.servos.<type>``, with the sources of
+its figures in docs/servos.md); :func:`joint_servos` gives each joint its servo, as mounted
+(``robot.servo_mounts``) or one type on every joint (``servo.type``).
+
+The parts of the model that are not physics (the physics is the MuJoCo servo plant,
+:mod:`tattotronix.plants.servo_plant`):
+
+* :meth:`~tattotronix.plants.servo_plant.ServoSpec.true_angle`, the servo's own
+  pulse-to-angle map: the calibration's line
+  plus a bend of up to ``nonlinearity_deg``, ``nonlinearity * sin(pi s)`` with ``s`` the
+  width's place in the servo's travel (-1 at ``min_us``, +1 at ``max_us``);
+* :func:`~tattotronix.plants.servo_plant.play`, gear backlash (and the dead band) as the
+  play operator: the link stays put until the servo
+  has taken up the play, ``y_k = clamp(y_{k-1}, x_k - b/2, x_k + b/2)``;
+* :func:`measure_fit`, the calibration procedure of ``stages/servo_pulse.py`` on a
+  simulated servo: the servo is sent ``fit_points`` widths across its travel and the angle
+  is read to ``protractor_deg``; the pairs are what a calibration file's ``points`` hold;
+* :func:`compensate`, the servo program's corrections: backlash (each joint arrives at
+  every marking stroke moving one chosen way, and where the plan reverses the command jumps
+  the play first) and the dead band (each move is pushed past half the band, so the servo
+  stops where it was sent instead of short of it).
+
+Units: rad inside (``_deg``, ``_us``, ``_ms`` as named).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+from tattotronix.config.schema import CompensateConfig, RobotConfig, ServoPlantConfig
+from tattotronix.errors import TattotronixError
+from tattotronix.hardware.servos import Calibration, PulseFit, ServoChannel
+from tattotronix.plants.servo_plant import ServoSpec, play
+
+__all__ = ["ServoSpec", "compensate", "joint_servos", "measure_fit", "play",
+           "with_measured_fits"]
+
+Array = NDArray[np.float64]
+
+
+def joint_servos(robot: RobotConfig, joint_names: Sequence[str], calib: Calibration,
+                 servo: ServoPlantConfig) -> tuple[ServoSpec, ...]:
+    """Each joint's servo: the mounted one (``robot.servo_mounts``) or ``servo.type`` on
+    every joint, with the imperfections ``servo`` switches off set to zero.
+
+    Raises:
+        TattotronixError: an unknown servo type, or a joint with no servo mounted.
+    """
+    catalogue = {str(k): v for k, v in robot.servos.items()}
+    mounted = {str(m.at): str(m.servo) for m in robot.servo_mounts}
+    counts = {str(m.at): int(m.count) for m in robot.servo_mounts}
+    out = []
+    for name in joint_names:
+        kind = str(servo.type) if servo.type is not None else mounted.get(name)
+        if kind is None:
+            raise TattotronixError(f"no servo is mounted at {name} (robot.servo_mounts): "
+                                   "mount one, or give servo.type")
+        if kind not in catalogue:
+            raise TattotronixError(f"servo.type={kind}: not in the catalogue robot.servos "
+                                   f"({', '.join(sorted(catalogue))})")
+        c = catalogue[kind]
+        bus = str(getattr(c.command, "value", c.command)) == "bus"
+        step = math.radians(float(c.step_deg))
+        if bus and step <= 0:
+            raise TattotronixError(f"robot.servos.{kind}: a bus servo needs its step_deg")
+        us_per_rad = abs(calib.joint(name).a.us_per_rad)
+        count = counts.get(name, 1)
+        # a bus servo holds within one encoder step either way
+        band = 2.0 * step if bus else float(c.deadband_us) / us_per_rad
+        out.append(ServoSpec(
+            type=kind, bus=bus,
+            deadband_rad=band if servo.deadband else 0.0,
+            stall_nm=count * float(c.stall_nm), speed_rad_s=float(c.speed_rad_s),
+            band_rad=math.radians(float(c.band_deg)),
+            backlash_rad=math.radians(float(c.backlash_deg)) if servo.backlash else 0.0,
+            nonlinearity_rad=(math.radians(float(c.nonlinearity_deg))
+                              if servo.nonlinearity and not bus else 0.0),
+            armature_kgm2=count * float(c.armature_kgm2),
+            latency_s=float(c.latency_ms) * 1e-3 if servo.lag else 0.0,
+            step_rad=step if servo.quantise else 0.0, count=count))
+    return tuple(out)
+
+
+def measure_fit(spec: ServoSpec, servo: ServoChannel, points: int, order: int,
+                protractor_deg: float) -> PulseFit:
+    """The calibration procedure (``stages/servo_pulse.py ... record=``) on a simulated
+    servo: ``points`` widths evenly across ``[min_us, max_us]``, each angle read to
+    ``protractor_deg``, fitted by a polynomial of ``order``."""
+    widths = np.linspace(servo.min_us, servo.max_us, int(points))
+    deg = np.degrees(spec.true_angle(servo, widths))
+    if protractor_deg > 0:
+        deg = np.round(deg / protractor_deg) * protractor_deg
+    return PulseFit(tuple(zip(widths.tolist(), deg.tolist(), strict=True)), int(order))
+
+
+def with_measured_fits(calib: Calibration, specs: Sequence[ServoSpec],
+                       servo: ServoPlantConfig) -> Calibration:
+    """``calib`` with every PWM joint's servo A measured (:func:`measure_fit`) and fitted,
+    as a user's calibration file holds it after ``servo_pulse.py ... record=``."""
+    from dataclasses import replace
+
+    joints = []
+    for j, spec in zip(calib.joints, specs, strict=True):
+        if spec.bus:
+            joints.append(j)
+            continue
+        fit = measure_fit(spec, j.a, servo.fit_points, servo.fit_order, servo.protractor_deg)
+        joints.append(replace(j, a=replace(j.a, fit=fit)))
+    return replace(calib, joints=tuple(joints))
+
+
+def _direction(q: Array, eps: float) -> Array:
+    """(F,) +1 / -1: the way ``q`` next moves by more than ``eps`` (looking ahead), held
+    where it stays put; the first move's way before it."""
+    d = np.zeros(len(q))
+    way = 0.0
+    anchor = float(q[-1]) if len(q) else 0.0
+    # walk backwards: the way of the next move bigger than eps from this frame
+    for k in range(len(q) - 1, -1, -1):
+        if abs(anchor - q[k]) > eps:
+            way = math.copysign(1.0, anchor - q[k])
+            anchor = float(q[k])
+        d[k] = way
+    first = next((x for x in d if x != 0.0), 1.0)
+    d[d == 0.0] = first
+    return d
+
+
+def compensate(q: Array, specs: Sequence[ServoSpec], switches: CompensateConfig) -> Array:
+    """The servo program's corrections of the frame angles ``q`` (F, n), rad.
+
+    * backlash: ``q + d b/2``, ``d`` the way the joint moves next (:func:`_direction`,
+      looking ahead past moves under a tenth of the play), so every joint reaches each
+      stroke already pressed the way it will move, and the play is taken up where the
+      plan reverses, before the link must follow;
+    * dead band: ``+ d_k w/2`` where ``d_k`` is the way of this frame's move from where the
+      servo rests: the servo stops half a band short of its command, so the command is
+      pushed half a band past the goal; where the goal moved less than the servo's
+      resolution, the command is held.
+    """
+    out = np.array(q, dtype=np.float64, copy=True)
+    if switches.backlash:
+        for i, s in enumerate(specs):
+            if s.backlash_rad > 0:
+                out[:, i] += 0.5 * s.backlash_rad * _direction(q[:, i], 0.1 * s.backlash_rad)
+    if switches.deadband:
+        for i, s in enumerate(specs):
+            w = s.deadband_rad
+            if w <= 0:
+                continue
+            goal = out[:, i]
+            rest = float(goal[0])
+            cmd = float(goal[0])
+            col = np.empty(len(goal))
+            for k, g in enumerate(goal.tolist()):
+                if abs(g - rest) > 0.05 * w:  # a move the servo should make
+                    cmd = g + math.copysign(0.5 * w, g - rest)
+                    rest = g
+                col[k] = cmd
+            out[:, i] = col
+    return out
