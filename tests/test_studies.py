@@ -30,7 +30,7 @@ SMALL = ["mask.width_mm=24", "mask.min_region_mm2=0.5"]
 #: the stage script of each study (the control study's is not control.py, which would
 #: shadow python-control's ``control`` package)
 SCRIPT = {"control": "control_study", "approach": "approach", "resample": "resample",
-          "rate": "rate", "timelaw": "timelaw"}
+          "rate": "rate", "timelaw": "timelaw", "servo": "servo_study"}
 
 
 def _stage(study: str, data: Path, *overrides: str, multirun: bool = False
@@ -258,6 +258,7 @@ def test_every_configured_case_has_stored_metrics() -> None:
         "rate": {f"{r}hz-wn{w}" for r in params["rate_hz"] for w in params["rate_wn"]},
         "timelaw": {f"tip{a}-jerk{j}" for a in params["timelaw_tip_mm_s2"]
                     for j in params["timelaw_jerk_rad_s3"]},
+        "servo": set(params["servo"]["cases"]),
     }
     for study in STUDIES:
         assert set(_stored(study)) == expect[study], study

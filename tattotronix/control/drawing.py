@@ -28,7 +28,7 @@ from numpy.typing import NDArray
 from tattotronix.art.artwork import BUILTINS, artwork_name
 from tattotronix.art.grid import InkMask
 from tattotronix.config.schema import Config, to_dict
-from tattotronix.control.analysis import loop_report
+from tattotronix.control.analysis import LoopReport, loop_report
 from tattotronix.control.controller import Controller, Gains
 from tattotronix.control.dynamics import Dynamics
 from tattotronix.control.ink import (
@@ -243,8 +243,8 @@ class ClosedLoop:
         drawing: what was played.
         run: the run (ticks, torques, verdict).
         controller: what closed the loop (``Controller.summary()``, or the servos').
-        analysis: the loop analysis at the tuning pose (:func:`loop_report`; the servo
-            plant's is its servos' figures).
+        analysis: the loop analysis at the tuning pose (:func:`loop_report`); None on the
+            servo plant (its servos' figures are in ``controller``).
         window: ``(start_s, end_s)`` of the stretch that ran.
         sample_every: ticks between error samples.
         backend: the plant.
@@ -257,7 +257,7 @@ class ClosedLoop:
     drawing: Drawing
     run: Run
     controller: JsonDict
-    analysis: Mapping[str, Any]
+    analysis: LoopReport | None
     window: tuple[float, float]
     sample_every: int
     backend: str
@@ -296,7 +296,7 @@ class ClosedLoop:
             **err.metrics(),
             **self.run.summary(),  # peak torque, verdict, real-time factor, wall/sim time
             "controller": self.controller,
-            "loop": self.analysis,
+            "loop": self.analysis if self.analysis is not None else {},
             "sample_s": self.sample_every * self.period_s,
         })
 
@@ -422,7 +422,7 @@ def draw_simulated(cfg: Config, out: Outputs) -> JsonDict:
 
 
 def score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
-                     desc: RobotDescription) -> dict[str, Any]:
+                    desc: RobotDescription) -> JsonDict:
     run, drawing, backend = loop.run, loop.drawing, loop.backend
     # the jobs of a multirun (draw.py -m controller.wn=40,80) each get their own outputs
     label = run_label(drawing.name, backend, out.sweep_suffix(

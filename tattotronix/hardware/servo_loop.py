@@ -174,7 +174,7 @@ def run_servo_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Dra
               reason=reason, wall_s=wall, substeps=1, loop="engine")
     wn = _servo_wn(setup.specs, bool(cfg.servo.lag), float(cfg.servo.ideal_wn))
     summary = _summary(setup, cfg)
-    return ClosedLoop(drawing, run, {**summary, "wn": wn}, {"servo_wn": wn},
+    return ClosedLoop(drawing, run, {**summary, "wn": wn}, None,
                       (t0, t0 + (k - 1) * settings.dt_s), sample_every, "servo",
                       settings.dt_s, wn, settings.dt_s)
 

@@ -306,8 +306,8 @@ class ClosedLoopStudy(ABC):
             m.update(self.window_metrics(cfg, loop))
             windows[label] = m
             series.update({f"{label}_{k}": v for k, v in s.items()})
-            if not analysis:  # the loop facts of the first window (the whole drawing)
-                analysis, controller = loop.analysis, loop.controller
+            if not controller:  # the loop facts of the first window (the whole drawing)
+                analysis, controller = loop.analysis or {}, loop.controller
             log.info("%s %s %s (%s): %s; settled %s / marking max %s um, peak %.3f N m "
                      "(%s loop, %.0fx real time)", self.name, name, case, label,
                      m["verdict"], _fmt(m["settled_mean_um"]), _fmt(m["marking_max_um"]),

@@ -17,6 +17,7 @@ from pathlib import Path
 
 from tattotronix.config.schema import Config, StudyConfig
 from tattotronix.control.drawing import ClosedLoop
+from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict, JsonValue
 from tattotronix.plotting import pyplot
 from tattotronix.studies.base import (
@@ -38,6 +39,9 @@ def rate_verdict_check(loop: ClosedLoop) -> JsonDict:
     loop with the plant's Euler sub-steps; ``predicted`` is ``ok`` below the latter.
     """
     a = loop.analysis
+    if a is None:
+        raise TattotronixError(f"the rate study needs our controller's loop: backend="
+                               f"{loop.backend} closes its own")
     predicted = "ok" if a["wnT"] < a["sampled_boundary_numeric_wnT"] else "fail"
     return {"wnT": a["wnT"], "boundary_wnT": a["sampled_boundary_wnT"],
             "boundary_numeric_wnT": a["sampled_boundary_numeric_wnT"],
