@@ -450,7 +450,8 @@ def test_stored_drawing_is_played_as_is_and_retimed_for_another_speed(
 
 def test_every_simulated_backend_of_the_config_has_a_plant() -> None:
     """``backend=`` is checked by the config schema; the factory builds each of those
-    (all but the real arm), and nothing else."""
+    (all but the real arm, and the servo plant, which plays the servo program rather than
+    torques: tattotronix.hardware.servo_loop), and nothing else."""
     from tattotronix.config.schema import Backend
 
-    assert set(BACKENDS) == {b.value for b in Backend} - {"arm"}
+    assert set(BACKENDS) == {b.value for b in Backend} - {"arm", "servo"}

@@ -79,8 +79,8 @@ class ServoStudy(ClosedLoopStudy):
             parts.append("all")
         elif comp:
             parts.append("-".join(comp))
-        if float(cfg.speed) != 1.0:
-            parts.append(f"x{float(cfg.speed):g}")
+        if float(cfg.speed) != 1.0:  # no dot: case names are config keys
+            parts.append(f"speed{round(100 * float(cfg.speed))}pct")
         return "-".join(parts)
 
     def cost(self, cfg: Config) -> float:
@@ -153,7 +153,7 @@ class ServoStudy(ClosedLoopStudy):
         if base is not None:
             for name, row in table.items():
                 rest = name[len(_BASE) + 1:] if name.startswith(_BASE + "-") else ""
-                if rest and "only" not in rest and not rest.startswith("x") and "-x" not in rest:
+                if rest and "only" not in rest and "speed" not in rest:
                     gains[rest] = {
                         "mean_mm": _diff(base["mean_mm"], row["mean_mm"]),
                         "worst_mm": _diff(base["worst_mm"], row["worst_mm"])}
