@@ -36,8 +36,8 @@ from tattotronix.kinematics import Chain
 from tattotronix.plants.base import PlantSettings
 from tattotronix.plants.servo_plant import ServoArm, ServoRun, ServoSpec, play
 from tattotronix.robot.description import RobotDescription
-
-from .conftest import ROOT
+from tattotronix.robot.mjcf import to_mjcf
+from tattotronix.robot.urdf import to_urdf
 
 #: the servo plant's imperfections (``servo.<name>``)
 IMPERFECTIONS = ("quantise", "deadband", "backlash", "nonlinearity", "lag")
@@ -47,12 +47,6 @@ FRAME_HZ = 50.0
 #: a pose in the middle of every joint's range (rad)
 Q0 = np.array([0.0, 0.3, -0.6, 0.0, 0.3])
 
-DATA = ROOT / "data"
-STORED = (DATA / "trajectories" / "emblem.npz", DATA / "robot" / "tattotronix.xml",
-          DATA / "robot" / "tattotronix.urdf")
-needs_stored = pytest.mark.skipif(not all(p.exists() for p in STORED),
-                                  reason="the emblem's trajectory or the generated robot "
-                                         "models are not checked out (run dvc repro)")
 #: a short stretch of the emblem that marks (s)
 WINDOW = [100.0, 20.0]
 
@@ -289,9 +283,20 @@ def test_a_window_shorter_than_two_frames_is_refused(draw_data: Path, desc: Robo
 # --- the emblem: the ideal servo and the corrections ---------------------------------------
 
 @pytest.fixture(scope="module")
-def emblem(desc: RobotDescription) -> Drawing:
-    """The stored emblem drawing."""
-    return resolve_drawing(compose_settings(), DATA, desc)
+def emblem_data(desc: RobotDescription, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A data folder holding only the generated models: no stored drawing, so the
+    built-in emblem is planned (in about 2 s; a clean clone has no DVC data)."""
+    data = tmp_path_factory.mktemp("emblem") / "data"
+    (data / "robot").mkdir(parents=True)
+    (data / "robot" / f"{desc.name}.urdf").write_text(to_urdf(desc))
+    (data / "robot" / f"{desc.name}.xml").write_text(to_mjcf(desc))
+    return data
+
+
+@pytest.fixture(scope="module")
+def emblem(desc: RobotDescription, emblem_data: Path) -> Drawing:
+    """The built-in emblem drawing, planned."""
+    return resolve_drawing(compose_settings(), emblem_data, desc)
 
 
 @pytest.fixture(scope="module")
@@ -305,14 +310,13 @@ def _tips(chain: Chain, loop: ClosedLoop) -> tuple[np.ndarray, np.ndarray]:
     return chain.fk(loop.run.q)[0], chain.fk(loop.run.ref.q[:len(loop.run.q)])[0]
 
 
-@needs_stored
 def test_the_ideal_servo_draws_the_mujoco_plants_ink(desc: RobotDescription, emblem: Drawing,
-                                                     chain: Chain) -> None:
+                                                     emblem_data: Path, chain: Chain) -> None:
     """Every imperfection off, the servo plant's ink is the MuJoCo plant's, to the needle."""
     cfg_mj = compose_settings(["backend=mujoco"])
     cfg_sv = compose_settings(["backend=servo", *IDEAL])
-    mj = run_closed_loop(cfg_mj, DATA, desc, emblem, window=WINDOW)
-    sv = run_servo_loop(cfg_sv, DATA, desc, emblem, window=WINDOW)
+    mj = run_closed_loop(cfg_mj, emblem_data, desc, emblem, window=WINDOW)
+    sv = run_servo_loop(cfg_sv, emblem_data, desc, emblem, window=WINDOW)
     assert mj.run.verdict == "ok" and sv.run.verdict == "ok"
     np.testing.assert_array_equal(sv.run.t, mj.run.t)  # the same plant steps
     tip_mj, tip_ref = _tips(chain, mj)
@@ -327,18 +331,17 @@ def test_the_ideal_servo_draws_the_mujoco_plants_ink(desc: RobotDescription, emb
     assert score_ink(cfg_mj, tip_mj, tip_ref)[3].max_dev_mm <= needle
 
 
-@needs_stored
 @pytest.mark.parametrize("imperfection, correction", [
     ("backlash", "backlash"), ("deadband", "deadband"), ("nonlinearity", "fit")])
 def test_each_correction_halves_its_own_error(desc: RobotDescription, emblem: Drawing,
-                                              chain: Chain, imperfection: str,
-                                              correction: str) -> None:
+                                              emblem_data: Path, chain: Chain,
+                                              imperfection: str, correction: str) -> None:
     """One imperfection alone: its correction at least halves the mean marking error."""
     mean = {}
     for on in (False, True):
         cfg = compose_settings(["backend=servo", *_only(imperfection),
                                 f"hardware.compensate.{correction}={str(on).lower()}"])
-        loop = run_servo_loop(cfg, DATA, desc, emblem, window=WINDOW)
+        loop = run_servo_loop(cfg, emblem_data, desc, emblem, window=WINDOW)
         assert loop.run.verdict == "ok"
         summary: Any = loop.controller
         assert summary["compensate"][correction] is on

@@ -67,12 +67,12 @@ from tattotronix.errors import TattotronixError
 from tattotronix.hardware.pca9685 import PCA9685, BusError, RecordingBus, SMBusLike, open_bus
 from tattotronix.hardware.preview import preview_of
 from tattotronix.hardware.program import ServoProgram
-from tattotronix.hardware.servo_model import ServoSpec
 from tattotronix.hardware.servos import Calibration, load_calibration
 from tattotronix.io.artifacts import run_dir, run_label
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain, IkOptions, solve_path
+from tattotronix.plants.servo_plant import ServoSpec
 from tattotronix.robot.description import RobotDescription, build_description
 
 __all__ = ["DRY_RUN_STATE", "RESUME_MARGIN_S", "TEST_HOOK_ENV", "ArmSession", "ArmState",

@@ -37,10 +37,9 @@ from numpy.typing import NDArray
 from tattotronix.config.schema import CompensateConfig, RobotConfig, ServoPlantConfig
 from tattotronix.errors import TattotronixError
 from tattotronix.hardware.servos import Calibration, PulseFit, ServoChannel
-from tattotronix.plants.servo_plant import ServoSpec, play
+from tattotronix.plants.servo_plant import ServoSpec
 
-__all__ = ["ServoSpec", "compensate", "joint_servos", "measure_fit", "play",
-           "with_measured_fits"]
+__all__ = ["compensate", "joint_servos", "measure_fit", "with_measured_fits"]
 
 Array = NDArray[np.float64]
 

@@ -273,6 +273,13 @@ class PulseFit:
 
     points: tuple[tuple[float, float], ...]
     order: int = DEFAULT_FIT_ORDER
+    # the fit (centred widths, for conditioning) and its inverse table (angles, widths)
+    _centre: float = field(init=False, repr=False, compare=False, default=0.0)
+    _coef: np.ndarray = field(init=False, repr=False, compare=False,
+                              default_factory=lambda: np.zeros(0))
+    _table: tuple[np.ndarray, np.ndarray] = field(
+        init=False, repr=False, compare=False,
+        default_factory=lambda: (np.zeros(0), np.zeros(0)))
 
     def __post_init__(self) -> None:
         pts = sorted((float(w), float(a)) for w, a in self.points)
@@ -303,8 +310,6 @@ class PulseFit:
             grid, ang = grid[::-1], ang[::-1]
         object.__setattr__(self, "_table", (ang, grid))
 
-    _centre: float = field(init=False, repr=False, compare=False, default=0.0)
-
     @property
     def span_us(self) -> tuple[float, float]:
         """The measured widths' range, us."""
@@ -312,13 +317,13 @@ class PulseFit:
 
     def angle(self, pulse_us: np.ndarray | float) -> np.ndarray:
         """The fitted angle (rad) of pulse widths (us)."""
-        coef = self._coef  # type: ignore[attr-defined]
-        return np.asarray(np.polyval(coef, np.asarray(pulse_us, dtype=float) - self._centre))
+        return np.asarray(np.polyval(self._coef,
+                                     np.asarray(pulse_us, dtype=float) - self._centre))
 
     def pulse_us(self, angle_rad: np.ndarray | float) -> np.ndarray:
         """The width (us) the fit maps to each angle (rad): the inverse, clamped to the
         measured widths (no extrapolation)."""
-        ang, grid = self._table  # type: ignore[attr-defined]
+        ang, grid = self._table
         return np.asarray(np.interp(np.asarray(angle_rad, dtype=float), ang, grid))
 
     def residual_deg(self) -> float:

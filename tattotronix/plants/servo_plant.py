@@ -187,7 +187,6 @@ class ServoArm:
         for a in list(spec.actuators):
             spec.delete(a)
         inertia = _joint_inertia(mjcf, settings, q0) if not lag else None
-        self.kp = np.zeros(len(joints))
         for i, (name, s) in enumerate(zip(joints, self.specs, strict=True)):
             a = spec.add_actuator(name=f"servo_{name}", target=name,
                                   trntype=mujoco.mjtTrn.mjTRN_JOINT)
@@ -210,8 +209,10 @@ class ServoArm:
                 a.forcelimited = mujoco.mjtLimited.mjLIMITED_FALSE
                 j.damping = [0.0, 0.0, 0.0]
             a.ctrllimited = mujoco.mjtLimited.mjLIMITED_FALSE
+            # the drive's force as the engine applied it (after the delay and the clamp)
+            spec.add_sensor(name=f"tau_{name}", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+                            objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=f"servo_{name}")
             j.armature = s.armature_kgm2
-            self.kp[i] = kp
         m = spec.compile()
         damping = m.dof_damping.copy()
         _apply_settings(m, settings)
@@ -277,12 +278,12 @@ class ServoArm:
             qd[start] = state[self._v0:self._v0 + n]
             shaft[start + 1:stop] = states[:-1, self._q0:self._q0 + n]
             qd[start + 1:stop] = states[:-1, self._v0:self._v0 + n]
+            tau[start:stop] = sensors[0][:, :n]
             state = states[-1].copy()
             healthy = healthy and not d.warning[self._bad].number
             if progress is not None:
                 progress(stop * self.dt)
         target = self._delayed(ctrl)
-        tau[:] = self._torque(shaft, target)
         q = np.column_stack([play(shaft[:, i], s.backlash_rad)
                              for i, s in enumerate(self.specs)])
         healthy = healthy and bool(np.all(np.isfinite(shaft)))
@@ -290,21 +291,15 @@ class ServoArm:
                         healthy=healthy)
 
     def _delayed(self, ctrl: Array) -> Array:
-        """The command each drive acts on at each step: ``ctrl`` later by the latency."""
+        """The command each drive acts on at each step: ``ctrl`` later by the latency
+        (MuJoCo's delay buffer acts ``ceil(latency / dt)`` steps later)."""
         out = np.empty_like(ctrl)
         for i, s in enumerate(self.specs):
-            lag = min(len(ctrl), int(round(s.latency_s / self.dt)) if self.lag else 0)
+            lag = math.ceil(s.latency_s / self.dt - 1e-9) if self.lag else 0
+            lag = min(len(ctrl), lag)
             out[:lag, i] = ctrl[0, i]
             out[lag:, i] = ctrl[:len(ctrl) - lag, i]
         return out
-
-    def _torque(self, shaft: Array, target: Array) -> Array:
-        """The drive's torque at each step (the actuator's law, from the logged state)."""
-        force = self.kp * (target - shaft)
-        if not self.lag:
-            return force
-        stall = np.array([s.stall_nm for s in self.specs])
-        return np.clip(force, -stall, stall)
 
 
 def _joint_inertia(mjcf: Path, settings: PlantSettings, q0: Array) -> Array:

@@ -231,8 +231,8 @@ class ClosedLoopStudy(ABC):
         starts the longest first, so no long case is left alone at the end."""
         return 1.0
 
-    def window_metrics(self, cfg: Config, loop: ClosedLoop) -> JsonDict:
-        """Metrics added to each window's (empty by default)."""
+    def window_metrics(self, cfg: Config, loop: ClosedLoop, chain: Chain) -> JsonDict:
+        """Metrics added to each window's (empty by default); ``chain`` is the arm's."""
         return {}
 
     def case_metrics(self, cfg: Config, name: str,
@@ -303,7 +303,7 @@ class ClosedLoopStudy(ABC):
                                        plant_dt_s=plant_dt,
                                        progress=bool(cfg.draw.progress))
             m, s = _window_metrics(loop, chain, settle)
-            m.update(self.window_metrics(cfg, loop))
+            m.update(self.window_metrics(cfg, loop, chain))
             windows[label] = m
             series.update({f"{label}_{k}": v for k, v in s.items()})
             if not controller:  # the loop facts of the first window (the whole drawing)

@@ -19,6 +19,7 @@ from tattotronix.config.schema import Config, StudyConfig
 from tattotronix.control.drawing import ClosedLoop
 from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict, JsonValue
+from tattotronix.kinematics import Chain
 from tattotronix.plotting import pyplot
 from tattotronix.studies.base import (
     VERDICT_COLOUR,
@@ -72,7 +73,7 @@ class RateStudy(ClosedLoopStudy):
         # the plant's steps are the same in every case; the controller ticks in Python
         return float(cfg.controller.rate_hz)
 
-    def window_metrics(self, cfg: Config, loop: ClosedLoop) -> JsonDict:
+    def window_metrics(self, cfg: Config, loop: ClosedLoop, chain: Chain) -> JsonDict:
         return {"boundary": rate_verdict_check(loop)}
 
     def case_metrics(self, cfg: Config, name: str,

@@ -32,7 +32,6 @@ from tattotronix.control.drawing import ClosedLoop, score_ink
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.kinematics import Chain
 from tattotronix.plotting import pyplot
-from tattotronix.robot.description import build_description
 from tattotronix.studies.base import Cases, ClosedLoopStudy, StudyCase, finish_figure
 
 __all__ = ["COMPENSATIONS", "IMPERFECTIONS", "STUDY", "ServoStudy"]
@@ -86,9 +85,8 @@ class ServoStudy(ClosedLoopStudy):
     def cost(self, cfg: Config) -> float:
         return 1.0 / float(cfg.speed)
 
-    def window_metrics(self, cfg: Config, loop: ClosedLoop) -> JsonDict:
+    def window_metrics(self, cfg: Config, loop: ClosedLoop, chain: Chain) -> JsonDict:
         """The ink: its worst deviation from the plan's, the line width, the cycle time."""
-        chain = Chain.from_description(build_description(cfg.robot))
         run = loop.run
         tip, _ = chain.fk(run.q)
         tip_ref, _ = chain.fk(run.ref.q[:len(run.q)])
