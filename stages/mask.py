@@ -1,7 +1,8 @@
 """Stage ``mask``: the artwork raster to an ink mask on the panel grid.
 
 Reads ``data/artwork/<name>.png`` (run the ``artwork`` stage first) and writes
-``data/mask/<name>.npz`` (:class:`~tattotronix.art.grid.InkMask`), a preview
+``data/mask/<name>.npz`` (:class:`~tattotronix.art.grid.InkMask`, with its provenance),
+a preview
 ``data/mask/<name>.png`` (ink black on white) and ``data/metrics/mask/<name>.json``.
 """
 
@@ -16,6 +17,7 @@ from tattotronix.art.artwork import artwork_name
 from tattotronix.art.mask import make_mask
 from tattotronix.config.schema import Config
 from tattotronix.errors import TattotronixError
+from tattotronix.io.artifacts import make_provenance
 from tattotronix.io.outputs import Outputs
 from tattotronix.stage import run_stage
 
@@ -52,7 +54,7 @@ def main(cfg: Config, out: Outputs) -> None:
         auto_invert=cfg.mask.auto_invert,
     )
     npz = out.path("mask", f"{name}.npz")
-    mask.save(out.tmp_path(npz))
+    mask.save(out.tmp_path(npz), make_provenance(cfg, {"artwork": src}))
     preview = out.path("mask", f"{name}.png")
     Image.fromarray(np.where(mask.ink, 0, 255).astype(np.uint8), mode="L").save(
         out.tmp_path(preview), format="PNG"

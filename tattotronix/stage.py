@@ -12,7 +12,10 @@ A stage script is thin::
 * Run by hand (``python stages/robot.py robot.mass_model=box``), the config is Hydra's
   composition of ``conf/`` plus the overrides; ``-m`` sweeps work as in any Hydra app.
 * Run by DVC (``DVC_STAGE`` is set), the config is ``params.yaml`` plus any overrides in
-  the command, after checking that ``params.yaml`` is not stale against ``conf/``.
+  the command, after checking that ``params.yaml`` is not stale against ``conf/``. The
+  provenance of its outputs then records only the params DVC tracks for it (its own,
+  those upstream, and its command's overrides: :mod:`tattotronix.config.tracked`), so
+  its outputs' bytes move exactly when DVC reruns it.
 * Either way the composed config is validated, then turned once into the typed, frozen
   settings (:class:`~tattotronix.config.schema.Config`) the body gets; the library takes
   those (or one section of them), never a ``DictConfig``.
@@ -42,8 +45,10 @@ from omegaconf import DictConfig, OmegaConf
 
 from tattotronix.config.params import load_params, one_line, to_settings
 from tattotronix.config.schema import Config
+from tattotronix.config.tracked import override_keys, tracked_params
 from tattotronix.errors import ConfigError, TattotronixError
 from tattotronix.io.outputs import Outputs, write_root
+from tattotronix.io.provenance import plain_config, recorded_keys
 
 __all__ = ["StageBody", "logs_to_stderr", "run_stage"]
 
@@ -142,13 +147,18 @@ def _parse_hint(exc: BaseException) -> str:
 
 def _run(name: str, body: StageBody) -> None:
     argv = sys.argv[1:]
-    if os.environ.get("DVC_STAGE"):
+    stage = os.environ.get("DVC_STAGE")
+    if stage:
         try:
             cfg = load_params(argv, root=Path.cwd())
+            keys = (tracked_params(stage, Path.cwd(), plain_config(cfg))
+                    + override_keys(argv))
         except ConfigError as exc:
             raise _refuse(name, str(exc)) from None
         OmegaConf.set_readonly(cfg, True)  # load_params has merged it into the schema
-        _execute(name, body, cfg)
+        # what DVC reruns the stage on is all its outputs may record (config/tracked.py)
+        with recorded_keys(keys):
+            _execute(name, body, cfg)
         return
 
     import hydra

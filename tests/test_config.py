@@ -32,10 +32,12 @@ ENV["PATH"] = os.pathsep.join([str(Path(PYTHON).parent), ENV.get("PATH", "")])
 
 
 def _project_copy(tmp: Path) -> Path:
-    """conf/, params.yaml and stages/ in a scratch folder (the code stays installed)."""
+    """conf/, params.yaml, dvc.yaml and stages/ in a scratch folder (the code stays
+    installed)."""
     for sub in ("conf", "stages"):
         shutil.copytree(ROOT / sub, tmp / sub)
-    shutil.copy(ROOT / "params.yaml", tmp / "params.yaml")
+    for name in ("params.yaml", "dvc.yaml"):
+        shutil.copy(ROOT / name, tmp / name)
     return tmp
 
 

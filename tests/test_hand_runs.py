@@ -57,7 +57,7 @@ def project(tmp_path: Path) -> Path:
     for name in ("conf", "stages", "tattotronix", "hydra_plugins"):
         shutil.copytree(ROOT / name, root / name,
                         ignore=shutil.ignore_patterns("__pycache__"))
-    for name in ("params.yaml", "pyproject.toml"):
+    for name in ("params.yaml", "pyproject.toml", "dvc.yaml"):
         shutil.copy2(ROOT / name, root / name)
     (root / PIPELINE_DATA).mkdir()
     return root

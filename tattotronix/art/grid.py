@@ -8,7 +8,7 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.errors import StageInputMissing, TattotronixError
 from tattotronix.io.npz import READ_ERRORS, save_npz
@@ -62,9 +62,14 @@ class InkMask:
         h, w = self.ink.shape
         return w * self.res_mm, h * self.res_mm
 
-    def save(self, path: Path) -> None:
-        """Write as an uncompressed-safe npz (no pickles)."""
-        save_npz(path, {"ink": self.ink, "res_mm": self.res_mm, "xs": self.xs, "ys": self.ys})
+    def save(self, path: Path, provenance: str | None = None) -> None:
+        """Write as an npz (no pickles), with ``provenance``
+        (:func:`tattotronix.io.artifacts.make_provenance`) when given."""
+        arrays: dict[str, ArrayLike] = {"ink": self.ink, "res_mm": self.res_mm, "xs": self.xs,
+                                        "ys": self.ys}
+        if provenance is not None:
+            arrays["provenance"] = np.array(provenance)
+        save_npz(path, arrays)
 
     @classmethod
     def load(cls, path: Path) -> InkMask:

@@ -2,19 +2,25 @@
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import enum
 import hashlib
 import json
 import sys
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
+from contextvars import ContextVar
 from pathlib import Path
 from typing import Any
 
-from tattotronix.io.jsontypes import JsonDict
+import numpy as np
 
-__all__ = ["CODE_PATHS", "code_version", "config_sha256", "file_sha256", "plain_config",
-           "provenance_json"]
+from tattotronix.io.jsontypes import JsonDict
+from tattotronix.io.npz import READ_ERRORS
+
+__all__ = ["CODE_PATHS", "code_version", "config_sha256", "file_sha256", "only_keys",
+           "plain_config", "provenance_json", "recorded_keys"]
 
 _ROOT = Path(__file__).resolve().parents[2]
 
@@ -95,10 +101,80 @@ def config_sha256(config: Mapping[str, object]) -> str:
     return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
 
+#: the config keys a provenance records; None: the whole config (:func:`recorded_keys`)
+_RECORDED: ContextVar[tuple[str, ...] | None] = ContextVar("recorded_keys", default=None)
+
+
+@contextmanager
+def recorded_keys(keys: Sequence[str] | None) -> Iterator[None]:
+    """Within the block, every provenance records only the config keys ``keys`` (dotted:
+    ``toolpath`` is the section, ``toolpath.pitch_mm`` one value); None records it all.
+
+    The stage runner sets it under DVC to the params DVC tracks for the stage
+    (:func:`tattotronix.config.tracked.tracked_params`), so that an output's bytes move
+    exactly when DVC reruns the stage that writes it.
+    """
+    token = _RECORDED.set(None if keys is None else tuple(keys))
+    try:
+        yield
+    finally:
+        _RECORDED.reset(token)
+
+
+def only_keys(config: Mapping[str, Any], keys: Sequence[str]) -> dict[str, Any]:
+    """The part of a plain config holding ``keys`` (dotted paths; absent ones skipped)."""
+    out: dict[str, Any] = {}
+    for key in keys:
+        *parents, last = key.split(".")
+        src: Any = config
+        for part in parents:
+            src = src.get(part) if isinstance(src, Mapping) else None
+        if not isinstance(src, Mapping) or last not in src:
+            continue
+        dst = out
+        for part in parents:
+            dst = dst.setdefault(part, {})
+        # a section named whole after one of its keys (or before) keeps all of it
+        value = copy.deepcopy(src[last])
+        if isinstance(dst.get(last), dict) and isinstance(value, Mapping):
+            value = {**dst[last], **value}
+        dst[last] = value
+    return out
+
+
+def _recorded_config(file: str | Path) -> Mapping[str, Any] | None:
+    """The config an input artifact's provenance records (None: not an npz with one)."""
+    if Path(file).suffix != ".npz":
+        return None
+    try:
+        with np.load(file, allow_pickle=False) as z:
+            if "provenance" not in z.files:
+                return None
+            prov = json.loads(str(z["provenance"]))
+    except READ_ERRORS:
+        return None
+    config = prov.get("config") if isinstance(prov, dict) else None
+    return config if isinstance(config, Mapping) else None
+
+
+def _fill(into: dict[str, Any], more: Mapping[str, Any]) -> None:
+    """Add to ``into`` the keys of ``more`` it lacks, at any depth."""
+    for key, value in more.items():
+        if key not in into:
+            into[key] = copy.deepcopy(value)
+        elif isinstance(into[key], dict) and isinstance(value, Mapping):
+            _fill(into[key], value)
+
+
 def provenance_json(config: Mapping[str, object], inputs: Mapping[str, str | Path],
                     code_version: str) -> str:
     """The provenance string: the resolved config and its hash (:func:`config_sha256`),
     the code version, input file hashes.
+
+    Inside :func:`recorded_keys` (a stage run by DVC) the config is only those keys, the
+    params DVC reruns the stage on, completed by the config each input artifact records
+    (its own provenance, so the settings upstream stages ran with reach every artifact
+    downstream): the bytes then depend only on what DVC tracks for the stage.
 
     Args:
         config: the composed config as plain containers (``OmegaConf.to_container(cfg,
@@ -106,6 +182,13 @@ def provenance_json(config: Mapping[str, object], inputs: Mapping[str, str | Pat
         inputs: role -> file (``{"ik": ..., "urdf": ...}``).
         code_version: :func:`code_version`.
     """
+    keys = _RECORDED.get()
+    if keys is not None:
+        config = only_keys(config, keys)
+        for file in inputs.values():
+            upstream = _recorded_config(file)
+            if upstream is not None:
+                _fill(config, upstream)
     return json.dumps({
         "config": dict(config),
         "config_sha256": config_sha256(config),

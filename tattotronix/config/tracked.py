@@ -1,0 +1,130 @@
+"""The params DVC tracks for a stage.
+
+A stage run by ``dvc repro`` reruns exactly when its command, its deps or its own params
+change. Its outputs must therefore depend on nothing else, or a clean clone writes other
+bytes than the committed ``dvc.lock`` says, and a cached result carries a config it was
+not made with. The provenance every artifact records holds the config, so under DVC the
+stage runner records only the stage's ``params`` (:func:`tracked_params`) and the keys
+its command overrides (:func:`override_keys`); what upstream stages were run with comes
+with their outputs, from the provenance those record
+(:func:`tattotronix.io.provenance.provenance_json`).
+
+``dvc.yaml`` is read as DVC reads it, for the parts this project uses: ``vars`` given
+inline, ``${...}`` interpolation from ``params.yaml`` and the vars, and ``foreach`` over a
+mapping or a list (``name@key``). A ``dvc.yaml`` using anything else (``matrix``, vars
+files) is refused by name rather than half-read.
+"""
+
+from __future__ import annotations
+
+import posixpath
+import re
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from tattotronix.errors import ConfigError
+
+__all__ = ["DVC_FILE", "override_keys", "tracked_params"]
+
+#: the pipeline file, at the project root
+DVC_FILE = "dvc.yaml"
+
+_REF = re.compile(r"\$\{\s*([^}\s]+)\s*\}")
+
+
+def _lookup(context: Mapping[str, Any], ref: str, where: str) -> Any:
+    value: Any = context
+    for part in ref.split("."):
+        if not isinstance(value, Mapping) or part not in value:
+            raise ConfigError(f"{DVC_FILE}: {where}: ${{{ref}}} names nothing in params.yaml "
+                              "or the vars")
+        value = value[part]
+    return value
+
+
+def _interpolate(value: Any, context: Mapping[str, Any], where: str) -> Any:
+    """``value`` with every ``${ref}`` resolved; a string that is one reference keeps the
+    referenced value's type (as DVC does: ``foreach: ${artworks}`` is a mapping)."""
+    if isinstance(value, str):
+        whole = _REF.fullmatch(value.strip())
+        if whole:
+            return _lookup(context, whole.group(1), where)
+        return _REF.sub(lambda m: str(_lookup(context, m.group(1), where)), value)
+    if isinstance(value, list):
+        return [_interpolate(v, context, where) for v in value]
+    if isinstance(value, dict):
+        return {_interpolate(k, context, where): _interpolate(v, context, where)
+                for k, v in value.items()}
+    return value
+
+
+def _params(entries: Any, where: str) -> list[str]:
+    out: list[str] = []
+    for entry in entries or []:
+        if isinstance(entry, str):
+            out.append(entry)
+        elif isinstance(entry, Mapping):
+            for file, keys in entry.items():
+                if posixpath.basename(str(file)) != "params.yaml":
+                    raise ConfigError(f"{DVC_FILE}: {where}: params from {file}; only "
+                                      "params.yaml is read")
+                out += [str(k) for k in keys or []]
+        else:
+            raise ConfigError(f"{DVC_FILE}: {where}: a param is a key, not {entry!r}")
+    return out
+
+
+def _stage_params(doc: Mapping[str, Any], params: Mapping[str, Any]) -> dict[str, list[str]]:
+    """Every stage's own params, by name (``name@key`` for each item of a ``foreach``)."""
+    context: dict[str, Any] = dict(params)
+    for entry in doc.get("vars") or []:
+        if not isinstance(entry, Mapping):
+            raise ConfigError(f"{DVC_FILE}: vars entry {entry!r}: only inline vars are read")
+        context.update(entry)
+    stages: dict[str, list[str]] = {}
+    for name, body in (doc.get("stages") or {}).items():
+        if not isinstance(body, Mapping) or "matrix" in body:
+            raise ConfigError(f"{DVC_FILE}: stage {name}: only plain and foreach stages "
+                              "are read")
+        if "foreach" not in body:
+            stages[str(name)] = _params(_interpolate(body.get("params"), context, name), name)
+            continue
+        items = _interpolate(body["foreach"], context, str(name))
+        pairs = items.items() if isinstance(items, Mapping) else ((v, v) for v in items)
+        for key, item in pairs:
+            full = f"{name}@{key}"
+            ctx = {**context, "key": key, "item": item}
+            stages[full] = _params(_interpolate(body["do"].get("params"), ctx, full), full)
+    return stages
+
+
+def tracked_params(stage: str, root: Path, params: Mapping[str, Any]) -> tuple[str, ...]:
+    """The params ``dvc.yaml`` lists for ``stage`` (``name`` or ``name@key``, as
+    ``DVC_STAGE`` names it).
+
+    Args:
+        stage: the stage's name.
+        root: the folder of ``dvc.yaml``.
+        params: ``params.yaml``'s values (for ``${paths.data}`` and the like).
+
+    Raises:
+        ConfigError: no ``dvc.yaml``, no such stage, or a form of it this reader refuses.
+    """
+    file = root / DVC_FILE
+    try:
+        doc = yaml.safe_load(file.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as exc:
+        raise ConfigError(f"cannot read {file} for the stage's tracked params: {exc}") from None
+    stages = _stage_params(doc or {}, params)
+    name = stage.rsplit(":", 1)[-1]  # "sub/dvc.yaml:name" when run from elsewhere
+    if name not in stages:
+        raise ConfigError(f"{file} has no stage {name!r} (DVC_STAGE)")
+    return tuple(stages[name])
+
+
+def override_keys(overrides: Sequence[str]) -> tuple[str, ...]:
+    """The keys a command line's ``key=value`` overrides set (``+``/``~``/``++`` dropped)."""
+    return tuple(o.split("=", 1)[0].lstrip("+~") for o in overrides if "=" in o)
