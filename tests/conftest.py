@@ -111,10 +111,10 @@ def default_signals() -> None:
 
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """The slow tests first, and the two longest (each runs whole pipelines) first of all,
-    one per worker: ``--dist load`` (pyproject.toml) deals the first tests to the workers
-    in turn, so the long ones run side by side from the start and the short ones fill in
-    after, instead of one long test queued behind the other or starting last alone."""
+    """The slow tests first, and the longest (it runs the whole pipeline) first of all:
+    ``--dist load`` (pyproject.toml) deals the first tests to the workers in turn, so the
+    long one starts at once and the short ones fill in beside it, instead of it starting
+    last alone."""
     def rank(item: pytest.Item) -> int:
         if item.name in LONGEST:
             return 0
@@ -122,5 +122,5 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     items.sort(key=rank)  # stable: the order within each rank is the collection's
 
 
-#: the tests that each run the whole pipeline (minutes each)
-LONGEST = ("test_dvc_repro_on_a_clean_clone", "test_every_stage_writes_the_same_metrics_twice")
+#: the tests that run the whole pipeline (minutes each)
+LONGEST = ("test_dvc_repro_on_a_clean_clone",)

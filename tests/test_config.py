@@ -134,7 +134,12 @@ def test_stage_bad_value_exits_with_the_allowed_values(tmp_path: Path) -> None:
 @pytest.mark.slow
 def test_dvc_repro_on_a_clean_clone(tmp_path: Path) -> None:
     """Acceptance: `dvc repro` on a fresh clone runs every stage, leaves git clean and ends
-    certified; a second `dvc repro` does nothing; a new `controller.wn` in conf/ marks
+    certified. Git clean means every output (dvc.lock holds the hash of each, the npz with
+    their provenance, the figures, the animation) and every metrics file is byte for byte
+    what another machine wrote at another commit, in another folder: no absolute path,
+    time of day, commit or wall time reaches a file (those go to data/timings/), and
+    `dvc metrics diff` shows nothing. A second `dvc repro` does nothing; a new
+    `controller.wn` in conf/ marks
     exactly its dependents changed; the README's `dvc exp run -S controller.wn=120` reruns
     only those, records certify's drift and `dvc metrics diff` shows the tracking change;
     the `--queue` / `--run-all` form and `dvc exp show` work."""
@@ -155,6 +160,9 @@ def test_dvc_repro_on_a_clean_clone(tmp_path: Path) -> None:
     # and certify (whose inputs are the committed documents, metrics and figures) is up to
     # date without running
     assert run("git", "status", "--porcelain").stdout == "", run("git", "status").stdout
+    diff = run(*dvc, "metrics", "diff")
+    assert diff.returncode == 0 and diff.stdout.strip() == "", diff.stdout
+    assert (clone / "data" / "timings" / "ik" / "emblem.json").is_file()  # the wall times
     assert ("Running stage 'certify'" in first.stdout
             or "Stage 'certify' didn't change" in first.stdout)
     for stage in ("config", "mass"):

@@ -77,7 +77,7 @@ def _params(entries: Any, where: str) -> list[str]:
     return out
 
 
-def _stage_params(doc: Mapping[str, Any], params: Mapping[str, Any]) -> dict[str, list[str]]:
+def _stage_params(doc: Mapping[str, Any], params: Mapping[str, object]) -> dict[str, list[str]]:
     """Every stage's own params, by name (``name@key`` for each item of a ``foreach``)."""
     context: dict[str, Any] = dict(params)
     for entry in doc.get("vars") or []:
@@ -101,7 +101,7 @@ def _stage_params(doc: Mapping[str, Any], params: Mapping[str, Any]) -> dict[str
     return stages
 
 
-def tracked_params(stage: str, root: Path, params: Mapping[str, Any]) -> tuple[str, ...]:
+def tracked_params(stage: str, root: Path, params: Mapping[str, object]) -> tuple[str, ...]:
     """The params ``dvc.yaml`` lists for ``stage`` (``name`` or ``name@key``, as
     ``DVC_STAGE`` names it).
 

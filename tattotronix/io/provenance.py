@@ -121,7 +121,7 @@ def recorded_keys(keys: Sequence[str] | None) -> Iterator[None]:
         _RECORDED.reset(token)
 
 
-def only_keys(config: Mapping[str, Any], keys: Sequence[str]) -> dict[str, Any]:
+def only_keys(config: Mapping[str, object], keys: Sequence[str]) -> dict[str, object]:
     """The part of a plain config holding ``keys`` (dotted paths; absent ones skipped)."""
     out: dict[str, Any] = {}
     for key in keys:
@@ -184,11 +184,12 @@ def provenance_json(config: Mapping[str, object], inputs: Mapping[str, str | Pat
     """
     keys = _RECORDED.get()
     if keys is not None:
-        config = only_keys(config, keys)
+        recorded = only_keys(config, keys)
         for file in inputs.values():
             upstream = _recorded_config(file)
             if upstream is not None:
-                _fill(config, upstream)
+                _fill(recorded, upstream)
+        config = recorded
     return json.dumps({
         "config": dict(config),
         "config_sha256": config_sha256(config),
