@@ -4,14 +4,17 @@ stored study metrics against the acceptance rules."""
 
 from __future__ import annotations
 
+import functools
 import json
 import subprocess
 import sys
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
+from omegaconf import DictConfig, OmegaConf
 
 from tattotronix.config.params import compose, compose_settings
 from tattotronix.config.schema import Config
@@ -44,25 +47,39 @@ def _stage(study: str, data: Path, *overrides: str, multirun: bool = False
 
 # --- names -----------------------------------------------------------------------------
 
+@functools.cache
+def _composed(overrides: tuple[str, ...]) -> DictConfig:
+    return compose(list(overrides))
+
+
+def _compose(overrides: Sequence[str] = ()) -> DictConfig:
+    """conf/ with these overrides, composed once per set of them (a composition takes
+    half a second, and the name tests see most cases twice); read-only, so that no test
+    changes another's."""
+    cfg = _composed(tuple(sorted(overrides)))
+    OmegaConf.set_readonly(cfg, True)
+    return cfg
+
+
 def test_case_names_match_the_configured_names() -> None:
     """A study's stage names each case's files from the swept keys; conf/study names the
     cases: the two agree for every configured case (else the stage refuses to run)."""
     params = yaml.safe_load((ROOT / "params.yaml").read_text())["study"]
     for key, case in params["control"]["cases"].items():
-        cfg = compose([f"controller.structure={case['structure']}",
+        cfg = _compose([f"controller.structure={case['structure']}",
                        f"controller.wn={case['wn']}"])
         assert STUDIES["control"].case_name(cfg) == key
     for v in params["approach_mm"]:
-        assert STUDIES["approach"].case_name(compose([f"toolpath.approach_mm={v}"])) == f"{v}mm"
+        assert STUDIES["approach"].case_name(_compose([f"toolpath.approach_mm={v}"])) == f"{v}mm"
     for v in params["step_mm"]:
-        assert STUDIES["resample"].case_name(compose([f"toolpath.step_mm={v}"])) == f"{v}mm"
+        assert STUDIES["resample"].case_name(_compose([f"toolpath.step_mm={v}"])) == f"{v}mm"
     for r in params["rate_hz"]:
         for w in params["rate_wn"]:
-            cfg = compose([f"controller.rate_hz={r}", f"controller.wn={w}"])
+            cfg = _compose([f"controller.rate_hz={r}", f"controller.wn={w}"])
             assert STUDIES["rate"].case_name(cfg) == f"{r}hz-wn{w}"
     for name, study in STUDIES.items():
-        cases = study.cases(compose().study)
-        assert all(study.case_name(compose(o)) == c for c, o in cases.items()), name
+        cases = study.cases(_compose().study)
+        assert all(study.case_name(_compose(o)) == c for c, o in cases.items()), name
 
 
 def test_every_study_names_its_configured_cases_and_has_its_stages() -> None:
@@ -70,7 +87,7 @@ def test_every_study_names_its_configured_cases_and_has_its_stages() -> None:
     it states (its first and last; every case of every study is checked above); dvc.yaml
     runs them in a stage of the study's name through a script that runs that study; the
     studies stage draws its figure."""
-    params = compose()
+    params = _compose()
     stages = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]
     assert set(SCRIPT) == set(STUDIES)
     for name, study in STUDIES.items():
@@ -78,7 +95,7 @@ def test_every_study_names_its_configured_cases_and_has_its_stages() -> None:
         cases = list(study.cases(params.study).items())
         assert cases, name
         for case, overrides in {cases[0][0]: cases[0][1], cases[-1][0]: cases[-1][1]}.items():
-            assert study.case_name(compose(overrides)) == case, (name, case)
+            assert study.case_name(_compose(overrides)) == case, (name, case)
         body = stages[name]
         script = f"stages/{SCRIPT[name]}.py"
         # one stage per study, every case at once; one file per case in its folders

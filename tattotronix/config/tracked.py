@@ -115,7 +115,9 @@ def tracked_params(stage: str, root: Path, params: Mapping[str, object]) -> tupl
     """
     file = root / DVC_FILE
     try:
-        doc = yaml.safe_load(file.read_text(encoding="utf-8"))
+        # libyaml's loader where the wheel has it: every stage run by DVC reads the file
+        loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+        doc = yaml.load(file.read_text(encoding="utf-8"), Loader=loader)
     except (OSError, yaml.YAMLError) as exc:
         raise ConfigError(f"cannot read {file} for the stage's tracked params: {exc}") from None
     stages = _stage_params(doc or {}, params)
