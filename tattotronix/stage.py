@@ -13,9 +13,10 @@ A stage script is thin::
   composition of ``conf/`` plus the overrides; ``-m`` sweeps work as in any Hydra app.
 * Run by DVC (``DVC_STAGE`` is set), the config is ``params.yaml`` plus any overrides in
   the command, after checking that ``params.yaml`` is not stale against ``conf/``. The
-  provenance of its outputs then records only the params DVC tracks for it (its own,
-  those upstream, and its command's overrides: :mod:`tattotronix.config.tracked`), so
-  its outputs' bytes move exactly when DVC reruns it.
+  provenance of its outputs then records only what DVC reruns it on: its params in
+  ``dvc.yaml`` (:mod:`tattotronix.config.tracked`) and its command's overrides, completed
+  by what its input artifacts record. So its outputs' bytes move exactly when DVC reruns
+  it.
 * Either way the composed config is validated, then turned once into the typed, frozen
   settings (:class:`~tattotronix.config.schema.Config`) the body gets; the library takes
   those (or one section of them), never a ``DictConfig``.

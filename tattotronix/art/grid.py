@@ -12,6 +12,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.errors import StageInputMissing, TattotronixError
 from tattotronix.io.npz import READ_ERRORS, save_npz
+from tattotronix.io.provenance import PROVENANCE_KEY
 
 __all__ = ["InkMask"]
 
@@ -68,7 +69,7 @@ class InkMask:
         arrays: dict[str, ArrayLike] = {"ink": self.ink, "res_mm": self.res_mm, "xs": self.xs,
                                         "ys": self.ys}
         if provenance is not None:
-            arrays["provenance"] = np.array(provenance)
+            arrays[PROVENANCE_KEY] = np.array(provenance)
         save_npz(path, arrays)
 
     @classmethod

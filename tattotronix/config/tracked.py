@@ -26,6 +26,7 @@ from typing import Any
 import yaml
 
 from tattotronix.errors import ConfigError
+from tattotronix.io.outputs import override_key
 
 __all__ = ["DVC_FILE", "override_keys", "tracked_params"]
 
@@ -129,4 +130,4 @@ def tracked_params(stage: str, root: Path, params: Mapping[str, object]) -> tupl
 
 def override_keys(overrides: Sequence[str]) -> tuple[str, ...]:
     """The keys a command line's ``key=value`` overrides set (``+``/``~``/``++`` dropped)."""
-    return tuple(o.split("=", 1)[0].lstrip("+~") for o in overrides if "=" in o)
+    return tuple(override_key(o) for o in overrides if "=" in o)

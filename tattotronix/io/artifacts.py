@@ -58,7 +58,12 @@ from numpy.typing import ArrayLike, NDArray
 from tattotronix.errors import StageInputMissing, TattotronixError
 from tattotronix.io.jsontypes import JsonDict, JsonValue
 from tattotronix.io.npz import READ_ERRORS, save_npz
-from tattotronix.io.provenance import code_version, plain_config, provenance_json
+from tattotronix.io.provenance import (
+    PROVENANCE_KEY,
+    code_version,
+    plain_config,
+    provenance_json,
+)
 
 __all__ = [
     "ACTUATOR_SERIES",
@@ -80,9 +85,6 @@ __all__ = [
     "run_dir",
     "run_label",
 ]
-
-#: the key every artifact stores its provenance JSON under
-PROVENANCE_KEY = "provenance"
 
 
 #: dtype kinds each stored dtype may be read back as (old files, hand-made inputs)

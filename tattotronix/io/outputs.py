@@ -19,7 +19,7 @@ from pathlib import Path
 
 from tattotronix.errors import StageInputMissing
 
-__all__ = ["HAND_RUNS", "PIPELINE_DATA", "PROJECT_ROOT", "Outputs", "write_root"]
+__all__ = ["HAND_RUNS", "PIPELINE_DATA", "PROJECT_ROOT", "Outputs", "override_key", "write_root"]
 
 log = logging.getLogger("tattotronix")
 
@@ -33,6 +33,11 @@ HAND_RUNS = "runs"
 
 #: overrides that say where outputs go, not what they are: never part of a name
 _WHERE_KEYS = ("paths.data", "paths.out")
+
+
+def override_key(override: str) -> str:
+    """The key a command line's override sets (``+a.b=1`` -> ``a.b``; ``~c`` -> ``c``)."""
+    return override.split("=", 1)[0].lstrip("+~")
 
 
 def _is_pipeline_data(data: Path) -> bool:
@@ -91,7 +96,7 @@ class Outputs:
             return ""
         skip = (*ignore, *_WHERE_KEYS)
         keep = [o.replace("/", "_") for o in self.sweep_overrides
-                if o.split("=", 1)[0].lstrip("+~") not in skip
+                if override_key(o) not in skip
                 and not o.startswith("hydra")]
         return "@" + ",".join(sorted(keep)) if keep else ""
 

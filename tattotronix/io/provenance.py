@@ -19,10 +19,13 @@ import numpy as np
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.io.npz import READ_ERRORS
 
-__all__ = ["CODE_PATHS", "code_version", "config_sha256", "file_sha256", "only_keys",
-           "plain_config", "provenance_json", "recorded_keys"]
+__all__ = ["CODE_PATHS", "PROVENANCE_KEY", "code_version", "config_sha256", "file_sha256",
+           "only_keys", "plain_config", "provenance_json", "recorded_keys"]
 
 _ROOT = Path(__file__).resolve().parents[2]
+
+#: the key every artifact stores its provenance JSON under
+PROVENANCE_KEY = "provenance"
 
 
 #: where "the code" lives: a change elsewhere (dvc.lock, metrics, documents, tests) is
@@ -134,11 +137,8 @@ def only_keys(config: Mapping[str, object], keys: Sequence[str]) -> dict[str, ob
         dst = out
         for part in parents:
             dst = dst.setdefault(part, {})
-        # a section named whole after one of its keys (or before) keeps all of it
-        value = copy.deepcopy(src[last])
-        if isinstance(dst.get(last), dict) and isinstance(value, Mapping):
-            value = {**dst[last], **value}
-        dst[last] = value
+        # a section named whole (before or after one of its keys) is the whole of it
+        dst[last] = copy.deepcopy(src[last])
     return out
 
 
@@ -148,9 +148,9 @@ def _recorded_config(file: str | Path) -> Mapping[str, Any] | None:
         return None
     try:
         with np.load(file, allow_pickle=False) as z:
-            if "provenance" not in z.files:
+            if PROVENANCE_KEY not in z.files:
                 return None
-            prov = json.loads(str(z["provenance"]))
+            prov = json.loads(str(z[PROVENANCE_KEY]))
     except READ_ERRORS:
         return None
     config = prov.get("config") if isinstance(prov, dict) else None
