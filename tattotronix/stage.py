@@ -44,12 +44,18 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from tattotronix.config.dvclock import guard as guard_lock
 from tattotronix.config.params import load_params, one_line, to_settings
 from tattotronix.config.schema import Config
-from tattotronix.config.tracked import override_keys, tracked_params
+from tattotronix.config.tracked import override_keys, stage_names, tracked_params
 from tattotronix.errors import ConfigError, TattotronixError
 from tattotronix.io.outputs import Outputs, write_root
-from tattotronix.io.provenance import plain_config, recorded_keys
+from tattotronix.io.provenance import (
+    fixed_code_version,
+    plain_config,
+    recorded_keys,
+    stamp_version,
+)
 
 __all__ = ["StageBody", "logs_to_stderr", "run_stage"]
 
@@ -152,13 +158,18 @@ def _run(name: str, body: StageBody) -> None:
     if stage:
         try:
             cfg = load_params(argv, root=Path.cwd())
-            keys = (tracked_params(stage, Path.cwd(), plain_config(cfg))
-                    + override_keys(argv))
+            params = plain_config(cfg)
+            keys = tracked_params(stage, Path.cwd(), params) + override_keys(argv)
+            # never build on a dvc.lock an interrupt cut short (config/dvclock.py)
+            guard_lock(Path.cwd(), stage_names(Path.cwd(), params))
         except ConfigError as exc:
             raise _refuse(name, str(exc)) from None
         OmegaConf.set_readonly(cfg, True)  # load_params has merged it into the schema
-        # what DVC reruns the stage on is all its outputs may record (config/tracked.py)
-        with recorded_keys(keys):
+        # what DVC reruns the stage on is all its outputs may record: its params
+        # (config/tracked.py) and its code, the stamp it depends on (devtools/codedeps.py)
+        definition = stage.rpartition(":")[2].split("@")[0]
+        stamp = Path(str(cfg.paths.data)) / "code" / f"{definition}.txt"
+        with recorded_keys(keys), fixed_code_version(stamp_version(stamp)):
             _execute(name, body, cfg)
         return
 
@@ -192,7 +203,8 @@ def _run(name: str, body: StageBody) -> None:
     full_error = os.environ.get("HYDRA_FULL_ERROR")
     os.environ["HYDRA_FULL_ERROR"] = "1"
     try:
-        _main()
+        with fixed_code_version():  # computed once: every job and worker records it
+            _main()
     except (HydraException, OmegaConfBaseException) as exc:
         if started:
             raise

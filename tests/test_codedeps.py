@@ -1,9 +1,10 @@
-"""Code deps by construction: every stage depends on exactly the project files it runs.
+"""Code deps by construction: every stage reruns exactly when the files it runs change.
 
-The deps come from the imports (``tattotronix.devtools.codedeps``); these tests hold
-dvc.yaml to them, hold the committed dvc.lock to the committed code, and show on a
-clean clone that editing a module makes DVC call the stages that import it stale, and
-no other stage.
+The code a stage runs comes from the imports (``tattotronix.io.codegraph``); each stage
+depends on its stamp, which the ``code`` stage writes (``tattotronix.devtools.codedeps``).
+These tests hold dvc.yaml to that, hold the committed stamps and dvc.lock to the
+committed code, and show on a clean clone that editing a module makes DVC call the
+stages that import it stale, and no other stage.
 """
 
 from __future__ import annotations
@@ -17,17 +18,48 @@ from pathlib import Path
 
 import pytest
 
-from tattotronix.devtools.codedeps import CODE_PREFIXES, CodeGraph, check, code_deps, stage_deps
+from tattotronix.devtools.codedeps import (
+    CODE_STAGE,
+    CodeGraph,
+    check,
+    code_deps,
+    stage_deps,
+    stale,
+    stamps,
+)
+from tattotronix.io.codegraph import version_of_stamp
+from tattotronix.io.provenance import _entry_version
 
 from .conftest import ROOT
 
 PYTHON = sys.executable
 
 
-def test_dvc_yaml_code_deps_are_the_imports_of_each_stage() -> None:
+def test_every_stage_depends_on_its_stamp_and_on_no_code_file() -> None:
     problems = check(ROOT)
     assert not problems, ("\n".join(problems)
                           + "\nfix: python -m tattotronix.devtools.codedeps --write")
+
+
+def test_the_committed_stamps_are_the_code_as_committed() -> None:
+    """data/code/<stage>.txt is what the code stage writes from this very code (so a
+    clean clone's dvc repro finds the code stage up to date)."""
+    assert not stale(ROOT / "data" / "code", ROOT), (
+        "stale stamps: run dvc repro (the code stage) and commit data/code")
+    assert sorted(p.stem for p in (ROOT / "data" / "code").glob("*.txt")) == sorted(stamps(ROOT))
+
+
+def test_a_stamp_lists_every_file_the_stage_runs_and_is_its_code_version() -> None:
+    fresh = stamps(ROOT)
+    draw = fresh["simulate"].splitlines()
+    paths = [line.split("  ", 1)[1] for line in draw]
+    assert paths == sorted(paths) and "stages/draw.py" in paths
+    assert "tattotronix/plants/mujoco_plant.py" in paths and "stages/robot.py" not in paths
+    assert all(len(line.split("  ", 1)[0]) == 64 for line in draw)  # sha256sum's format
+    # the code version every output of the stage records is the stamp's hash
+    assert _entry_version(ROOT, ROOT / "stages" / "draw.py", None) == version_of_stamp(
+        fresh["simulate"])
+    assert version_of_stamp(fresh["simulate"]) != version_of_stamp(fresh["robot"])
 
 
 def test_every_stage_that_builds_the_robot_depends_on_its_settings() -> None:
@@ -38,17 +70,17 @@ def test_every_stage_that_builds_the_robot_depends_on_its_settings() -> None:
 
     stages = yaml.safe_load((ROOT / "dvc.yaml").read_text())["stages"]
     builders = []
-    for name, stage in stages.items():
-        body = stage.get("do", stage)
-        deps = body.get("deps", [])
-        if "tattotronix/robot/description.py" not in deps and "tattotronix/robot" not in deps:
+    for s in stage_deps(ROOT):
+        if not any(d in ("tattotronix/robot/description.py", "tattotronix/robot")
+                   for d in s.wanted):
             continue
-        builders.append(name)
-        if name in ("robot", "mass"):
-            assert "robot" in body.get("params", []), name
+        builders.append(s.name)
+        body = stages[s.name].get("do", stages[s.name])
+        if s.name in ("robot", "mass"):
+            assert "robot" in body.get("params", []), s.name
         else:
-            assert "${paths.data}/robot/config.json" in deps, name
-            assert "robot" not in body.get("params", []), name  # held once, in that file
+            assert "${paths.data}/robot/config.json" in s.deps, s.name
+            assert "robot" not in body.get("params", []), s.name  # held once, in that file
     assert {"ik", "trajectory", "simulate", "control"} <= set(builders), builders
     assert "${paths.data}/robot/config.json" in stages["robot"]["outs"]
 
@@ -106,20 +138,24 @@ def test_closure_follows_every_runtime_import_and_nothing_else(tmp_path: Path) -
         "tattotronix/__init__.py", "tattotronix/lazy.py"]
 
 
-def _dvc_status(clone: Path) -> dict[str, set[str]]:
-    """stage -> the code deps `dvc status` calls changed (missing data is ignored: a
-    clean clone has no outputs)."""
+def _run(clone: Path, *argv: str) -> subprocess.CompletedProcess[str]:
     env = {**os.environ, "DVC_NO_ANALYTICS": "1", "PYTHONPATH": str(clone)}
     env.pop("DVC_STAGE", None)
-    run = subprocess.run([PYTHON, "-m", "dvc", "status", "--json"], cwd=clone, env=env,
-                         capture_output=True, text=True, timeout=300)
+    return subprocess.run([PYTHON, *argv], cwd=clone, env=env, capture_output=True,
+                          text=True, timeout=300)
+
+
+def _dvc_status(clone: Path) -> dict[str, set[str]]:
+    """stage -> the deps `dvc status` calls modified (missing data is ignored: a clean
+    clone has no outputs)."""
+    run = _run(clone, "-m", "dvc", "status", "--json")
     assert run.returncode == 0, run.stderr
     changed: dict[str, set[str]] = {}
     for stage, entries in json.loads(run.stdout or "{}").items():
         for entry in entries:
             if isinstance(entry, dict):
                 for path, state in entry.get("changed deps", {}).items():
-                    if path.startswith(CODE_PREFIXES) and state == "modified":
+                    if state == "modified":
                         changed.setdefault(stage, set()).add(path)
     return changed
 
@@ -132,11 +168,14 @@ def clone(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_committed_lock_was_made_by_the_committed_code(clone: Path) -> None:
-    """Cached results never belong to older code: on a clean clone no stage's code dep
-    differs from what dvc.lock recorded (run `dvc repro` and commit dvc.lock)."""
-    stale = _dvc_status(clone)
-    assert not stale, "dvc.lock is older than the code: " + "; ".join(
-        f"{s}: {', '.join(sorted(p))}" for s, p in sorted(stale.items()))
+    """Cached results never belong to older code: on a clean clone the code stage's
+    folders are as dvc.lock recorded them, and no stage's stamp differs (run `dvc repro`
+    and commit dvc.lock and data/code)."""
+    changed = _dvc_status(clone)
+    assert CODE_STAGE not in changed, changed.get(CODE_STAGE)
+    stamped = {s: p for s, p in changed.items() if any("/code/" in d for d in p)}
+    assert not stamped, "dvc.lock is older than the code: " + "; ".join(
+        f"{s}: {', '.join(sorted(p))}" for s, p in sorted(stamped.items()))
 
 
 @pytest.mark.parametrize("module", ["tattotronix/pipeline.py", "tattotronix/path/order.py",
@@ -144,16 +183,28 @@ def test_committed_lock_was_made_by_the_committed_code(clone: Path) -> None:
 def test_editing_a_module_makes_exactly_its_importers_stale(clone: Path, module: str) -> None:
     target = clone / module
     before = target.read_text()
-    try:
-        target.write_text(before + "\n# an edit\n")
-        stale = {s for s, paths in _dvc_status(clone).items()
-                 if any(module == p or module.startswith(p + "/") for p in paths)}
-    finally:
-        target.write_text(before)
     importers = {s.name for s in stage_deps(clone)
                  if any(module == d or module.startswith(d + "/") for d in s.wanted)}
     assert importers, module
+    try:
+        target.write_text(before + "\n# an edit\n")
+        # DVC sees the code folders changed: the code stage reruns first
+        assert CODE_STAGE in _dvc_status(clone)
+        # which restamps exactly the importers, and DVC then calls exactly those stale
+        said = _run(clone, "-m", "tattotronix.devtools.codedeps", "--status")
+        assert said.returncode == 0, said.stderr
+        named = set(said.stdout.split("code changed for ", 1)[1].split(" (")[0].split(", "))
+        assert named == importers
+        assert _run(clone, "-m", "tattotronix.devtools.codedeps", "--stamp",
+                    "data/code").returncode == 0
+        stale_now = {s for s, paths in _dvc_status(clone).items()
+                     if any(p.startswith("data/code/") for p in paths)}
+    finally:
+        target.write_text(before)
+        _run(clone, "-m", "tattotronix.devtools.codedeps", "--stamp", "data/code")
     # dvc names foreach stages name@key: compare on the stage part
-    assert {s.split("@")[0] for s in stale} == importers
+    assert {s.split("@")[0] for s in stale_now} == importers
+    # the edit undone and restamped: nothing is stale any more
+    assert not _dvc_status(clone)
     if module == "tattotronix/pipeline.py":
-        assert any(s.startswith("ik@") for s in stale)
+        assert any(s.startswith("ik@") for s in stale_now)

@@ -34,7 +34,7 @@ def test_readme_zero_pose_figures_equal_the_robot_metrics(robot: dict) -> None:
 
 def test_readme_opens_with_the_two_fresh_machine_commands() -> None:
     blocks = re.findall(r"```bash\n(.+?)\n```", README, re.S)
-    assert "pip install -e" in blocks[0] and "dvc repro" in blocks[0]
+    assert "pip install -c constraints.txt -e" in blocks[0] and "dvc repro" in blocks[0]
     assert "pytest" in blocks[1]
     assert "python -m pytest" in (ROOT / ".ci" / "run").read_text()
 

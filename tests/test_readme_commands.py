@@ -36,7 +36,8 @@ SMALL = "on a small drawing (a 24 mm PNG the test makes) in a scratch data folde
 #: README command -> (TEST, test id, how) or (NOT_RUN, why)
 COVERED: dict[str, tuple[str, ...]] = {
     # --- the top of the README
-    'python3 -m venv .venv && . .venv/bin/activate && pip install -e ".[dev]" && dvc repro': (
+    ('python3 -m venv .venv && . .venv/bin/activate && pip install -c constraints.txt -e '
+     '".[dev]" && dvc repro'): (
         TEST, "tests/test_config.py::test_dvc_repro_on_a_clean_clone",
         "`dvc repro` on a clean clone of the project: every stage on the built-in drawings, "
         "certify included, then a second `dvc repro` that runs nothing; the test runs in the "
@@ -138,7 +139,7 @@ COVERED: dict[str, tuple[str, ...]] = {
         "robot.cad_dir=$TATTOTRONIX_CAD_DIR (CI: ../shared/cad/meshes) with paths.data=<tmp>; "
         "skipped without the meshes (marked cad)"),
     # --- development
-    'pip install -e ".[dev]"': (
+    'pip install -c constraints.txt -e ".[dev]"': (
         NOT_RUN, "installs from the package registries; `bash .ci/run` does it, into a "
         "fresh venv"),
     "ruff check . && mypy": (

@@ -7,7 +7,9 @@ README, "Configuration"). So ``params.yaml`` can silently fall behind an edit un
 * the ``config`` stage depends on ``conf/`` and runs first; under ``dvc repro`` it
   recomposes ``conf/`` and stops, naming the keys that differ, when ``params.yaml`` is
   stale (``dvc exp run`` recomposes it itself, so there it has nothing to do);
-* every stage run by DVC makes the same check before it reads ``params.yaml``.
+* every stage run by DVC makes the same check before it reads ``params.yaml``, unless
+  the gate's stamp holds the hash of these very bytes of ``conf/`` and ``params.yaml``
+  (then the gate has checked them, and composing ``conf/`` again would only cost time).
 
 ``tattotronix-params`` (``python -m tattotronix.config.params``) rewrites ``params.yaml``;
 ``--check`` only compares. Both first refuse a ``conf/`` whose composition has a key out
@@ -226,6 +228,47 @@ def stale_message(root: Path = PROJECT_ROOT) -> str | None:
     )
 
 
+#: what the ``config`` gate writes into its stamp when ``params.yaml`` is fresh
+_FRESH = "params.yaml is the composition of conf/: "
+
+
+def _fingerprint(root: Path) -> str:
+    """A hash of the bytes of ``conf/`` and ``params.yaml`` (paths relative to ``root``)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    files = sorted(p for p in (root / "conf").rglob("*") if p.is_file())
+    for path in [*files, root / PARAMS_FILE]:
+        if path.is_file():
+            h.update(path.relative_to(root).as_posix().encode() + b"\0")
+            h.update(hashlib.sha256(path.read_bytes()).digest())
+    return "sha256:" + h.hexdigest()
+
+
+def _gate_stamp(root: Path) -> Path | None:
+    """The ``config`` gate's stamp for the pipeline ``params.yaml`` names."""
+    import yaml
+
+    try:
+        params = yaml.load((root / PARAMS_FILE).read_text(encoding="utf-8"),
+                           Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+        data = params["paths"]["data"]
+    except (OSError, yaml.YAMLError, KeyError, TypeError):
+        return None
+    return root / str(data) / "config.ok" if isinstance(data, str) else None
+
+
+def _gate_passed(root: Path) -> bool:
+    """True when the ``config`` gate checked these very bytes of ``conf/`` and
+    ``params.yaml`` (so a stage need not compose ``conf/`` again)."""
+    stamp = _gate_stamp(root)
+    try:
+        text = stamp.read_text(encoding="utf-8") if stamp else ""
+    except OSError:
+        return False
+    return text == _FRESH + _fingerprint(root) + "\n"
+
+
 def load_params(overrides: Sequence[str] = (), root: Path = PROJECT_ROOT) -> DictConfig:
     """The configuration a DVC-run stage uses: ``params.yaml`` plus command-line overrides.
 
@@ -235,7 +278,7 @@ def load_params(overrides: Sequence[str] = (), root: Path = PROJECT_ROOT) -> Dic
     Raises:
         StaleParamsError: ``params.yaml`` is behind ``conf/`` under ``dvc repro``.
     """
-    if not os.environ.get("DVC_EXP_NAME"):
+    if not os.environ.get("DVC_EXP_NAME") and not _gate_passed(root):
         msg = stale_message(root)
         if msg:
             raise StaleParamsError(msg)
@@ -282,6 +325,12 @@ def main(argv: Sequence[str] | None = None) -> int:
                     help="project root (default: the current directory, as DVC runs it)")
     args = ap.parse_args(argv)
     try:
+        if args.check and os.environ.get("DVC_STAGE"):
+            # the first stage of every repro: never build on a cut-short dvc.lock
+            from tattotronix.config.dvclock import guard
+            from tattotronix.config.tracked import stage_names
+
+            guard(args.root, stage_names(args.root))
         # a value out of its range stops here, before any stage (one line, naming the key)
         compose_settings(conf_dir=args.root / "conf")
         if args.check:
@@ -296,7 +345,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(ok)
             if args.stamp:
                 args.stamp.parent.mkdir(parents=True, exist_ok=True)
-                args.stamp.write_text("params.yaml is fresh\n")
+                # the stages trust these bytes without composing conf/ again (a params.yaml
+                # an experiment composed is not the composition of conf/: no hash)
+                args.stamp.write_text(
+                    ok + "\n" if os.environ.get("DVC_EXP_NAME")
+                    else _FRESH + _fingerprint(args.root) + "\n", encoding="utf-8")
             return 0
         path = write_params(args.root)
         print(f"wrote {path}")

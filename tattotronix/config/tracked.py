@@ -28,7 +28,7 @@ import yaml
 from tattotronix.errors import ConfigError
 from tattotronix.io.outputs import override_key
 
-__all__ = ["DVC_FILE", "override_keys", "tracked_params"]
+__all__ = ["DVC_FILE", "override_keys", "stage_names", "tracked_params"]
 
 #: the pipeline file, at the project root
 DVC_FILE = "dvc.yaml"
@@ -102,6 +102,19 @@ def _stage_params(doc: Mapping[str, Any], params: Mapping[str, object]) -> dict[
     return stages
 
 
+def _read(root: Path) -> Mapping[str, Any]:
+    file = root / DVC_FILE
+    try:
+        # libyaml's loader where the wheel has it: every stage run by DVC reads the file
+        doc = yaml.load(file.read_text(encoding="utf-8"), Loader=_LOADER)
+    except (OSError, yaml.YAMLError) as exc:
+        raise ConfigError(f"cannot read {file}: {exc}") from None
+    return doc if isinstance(doc, Mapping) else {}
+
+
+_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
 def tracked_params(stage: str, root: Path, params: Mapping[str, object]) -> tuple[str, ...]:
     """The params ``dvc.yaml`` lists for ``stage`` (``name`` or ``name@key``, as
     ``DVC_STAGE`` names it).
@@ -114,18 +127,24 @@ def tracked_params(stage: str, root: Path, params: Mapping[str, object]) -> tupl
     Raises:
         ConfigError: no ``dvc.yaml``, no such stage, or a form of it this reader refuses.
     """
-    file = root / DVC_FILE
-    try:
-        # libyaml's loader where the wheel has it: every stage run by DVC reads the file
-        loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-        doc = yaml.load(file.read_text(encoding="utf-8"), Loader=loader)
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f"cannot read {file} for the stage's tracked params: {exc}") from None
-    stages = _stage_params(doc or {}, params)
+    stages = _stage_params(_read(root), params)
     name = stage.rsplit(":", 1)[-1]  # "sub/dvc.yaml:name" when run from elsewhere
     if name not in stages:
-        raise ConfigError(f"{file} has no stage {name!r} (DVC_STAGE)")
+        raise ConfigError(f"{root / DVC_FILE} has no stage {name!r} (DVC_STAGE)")
     return tuple(stages[name])
+
+
+def stage_names(root: Path, params: Mapping[str, object] | None = None) -> list[str]:
+    """Every stage of ``root/dvc.yaml`` as DVC names it (``name@key`` for foreach items);
+    ``params`` is ``params.yaml``'s values (read from ``root`` if None)."""
+    if params is None:
+        try:
+            loaded = yaml.load((root / "params.yaml").read_text(encoding="utf-8"),
+                               Loader=_LOADER)
+        except (OSError, yaml.YAMLError) as exc:
+            raise ConfigError(f"cannot read {root / 'params.yaml'}: {exc}") from None
+        params = loaded if isinstance(loaded, Mapping) else {}
+    return list(_stage_params(_read(root), params))
 
 
 def override_keys(overrides: Sequence[str]) -> tuple[str, ...]:

@@ -1,155 +1,64 @@
-"""The code each DVC stage runs, found from the imports themselves.
+"""Each DVC stage reruns exactly when the code it runs changes: one stamp per stage.
 
-A stage's code deps in ``dvc.yaml`` are the project files its entry point executes: the
-script (``python stages/<name>.py``) or module (``python -m tattotronix.config.params``),
-every project module it imports (at module level or inside a function; imports under
-``if TYPE_CHECKING:`` never run and do not count), the ``__init__.py`` of every package on
-the way, the package data a module names (``assets``, ``kdop.json``), and, when anything
-imports Hydra, the plugins under ``hydra_plugins/`` that Hydra imports at start-up. The
-list is exact: a change to a file reruns the stages that execute it and no other. Where
-every file under a folder is in the list, the folder stands for them.
+A stage's code is found from the imports themselves (:mod:`tattotronix.io.codegraph`:
+the script or ``-m`` module, every project module it imports at run time, the packages
+on the way, the package data a module names, and the Hydra plugins). Listing those files
+as deps of every stage made ``dvc.lock`` 12,000 lines, most of them code, which DVC reads
+and rewrites after every stage. Instead:
 
-    python -m tattotronix.devtools.codedeps --check   # exit 1, naming the stage and files
-    python -m tattotronix.devtools.codedeps --write   # rewrite the code deps in dvc.yaml
+* the ``code`` stage (``python -m tattotronix.devtools.codedeps --stamp
+  ${paths.data}/code``) depends on the code folders and writes one stamp per stage,
+  ``<paths.data>/code/<stage>.txt``: ``<sha256>  <path>`` for each file the stage runs;
+* every Python stage depends on its own stamp, and on no code file.
 
-Data deps (``${paths.data}/...``, ``conf``, ``README.md``, ...) are left as they are.
+An edit reruns ``code`` (a second), which rewrites the stamps of exactly the stages that
+run the edited file, and DVC then reruns exactly those. The stage's outputs record the
+stamp's hash as their code version (:func:`tattotronix.io.provenance.code_version`).
+
+    python -m tattotronix.devtools.codedeps --write    # dvc.yaml: the stamps as deps
+    python -m tattotronix.devtools.codedeps --check    # exit 1, naming the stage
+    python -m tattotronix.devtools.codedeps --status   # the stages an edit makes stale
+
+``--write`` is needed only when a stage is added, renamed or removed: a new import is
+found by the ``code`` stage at the next ``dvc repro``.
 """
 
 from __future__ import annotations
 
 import argparse
-import ast
-import shlex
+import os
 import sys
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-__all__ = ["CodeGraph", "StageDeps", "check", "code_deps", "stage_deps", "write"]
+from tattotronix.config.dvclock import guard
+from tattotronix.config.tracked import stage_names
+from tattotronix.errors import ConfigError
+from tattotronix.io.codegraph import (
+    CodeGraph,
+    entry_of,
+    stamp_text,
+)
+
+__all__ = ["CODE_STAGE", "CodeGraph", "StageDeps", "check", "code_deps", "stage_deps",
+           "stamps", "write", "write_stamps"]
 
 ROOT = Path(__file__).resolve().parents[2]
-#: importable project packages (their files are code deps when executed)
-PACKAGES = ("tattotronix", "hydra_plugins")
-#: a dep that starts with one of these is code, owned by this tool
+#: a dep that starts with one of these is code (never a dep of a stage but ``code``)
 CODE_PREFIXES = ("stages/", "tattotronix", "hydra_plugins")
-#: top-level import names that make Hydra import every plugin module at start-up
-PLUGIN_HOSTS = ("hydra",)
-_SKIP = ("__pycache__",)
+#: the stage that writes the stamps, and what it depends on
+CODE_STAGE = "code"
+CODE_FOLDERS = ("hydra_plugins", "stages", "tattotronix")
+#: where the stamps go, as dvc.yaml says it
+STAMP_DIR = "${paths.data}/code"
+_STAMP_CMD = f"python -m tattotronix.devtools.codedeps --stamp {STAMP_DIR}"
 
 
-def _is_type_checking(test: ast.expr) -> bool:
-    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
-        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
-
-
-def _runtime_nodes(tree: ast.AST) -> Iterator[ast.AST]:
-    """Every node of ``tree`` except the bodies of ``if TYPE_CHECKING:``."""
-    stack = [tree]
-    while stack:
-        node = stack.pop()
-        yield node
-        if isinstance(node, ast.If) and _is_type_checking(node.test):
-            stack.extend(node.orelse)
-            continue
-        stack.extend(ast.iter_child_nodes(node))
-
-
-@dataclass(frozen=True)
-class _Module:
-    name: str
-    path: Path
-    is_package: bool
-    imports: frozenset[str]  # dotted names as written (resolved when relative)
-    strings: frozenset[str]  # string constants (to find the package data a module names)
-
-
-class CodeGraph:
-    """The project's modules and what each one imports, read from the source."""
-
-    def __init__(self, root: Path = ROOT):
-        self.root = root
-        self.modules: dict[str, _Module] = {}
-        for package in PACKAGES:
-            for path in sorted((root / package).rglob("*.py")):
-                if any(part in _SKIP for part in path.parts):
-                    continue
-                rel = path.relative_to(root).with_suffix("")
-                parts = list(rel.parts)
-                is_pkg = parts[-1] == "__init__"
-                if is_pkg:
-                    parts = parts[:-1]
-                name = ".".join(parts)
-                self.modules[name] = self._read(name, path, is_pkg)
-
-    def _read(self, name: str, path: Path, is_pkg: bool) -> _Module:
-        tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
-        package = name if is_pkg else name.rpartition(".")[0]
-        found: set[str] = set()
-        strings: set[str] = set()
-        for node in _runtime_nodes(tree):
-            if isinstance(node, ast.Import):
-                found.update(alias.name for alias in node.names)
-            elif isinstance(node, ast.ImportFrom):
-                base = node.module or ""
-                if node.level:
-                    anchor = package.split(".")
-                    anchor = anchor[: len(anchor) - node.level + 1]
-                    base = ".".join([*anchor, base] if base else anchor)
-                found.add(base)
-                found.update(f"{base}.{alias.name}" for alias in node.names)
-            elif isinstance(node, ast.Constant) and isinstance(node.value, str):
-                strings.add(node.value)
-        return _Module(name, path, is_pkg, frozenset(found), frozenset(strings))
-
-    def _executed(self, dotted: str) -> list[str]:
-        """The project modules that ``import dotted`` runs: every package on the way."""
-        parts = dotted.split(".")
-        return [m for i in range(1, len(parts) + 1)
-                if (m := ".".join(parts[:i])) in self.modules]
-
-    def _package_data(self, module: _Module) -> set[Path]:
-        """Non-Python files and folders beside ``module`` that it names in a string."""
-        folder = module.path.parent
-        return {p for p in folder.iterdir()
-                if p.name in module.strings and p.suffix != ".py" and p.name not in _SKIP
-                and not (p.is_dir() and any(p.rglob("*.py")))}
-
-    def closure(self, entry: Path, entry_imports: Iterable[str] = ()) -> set[Path]:
-        """Every project file that running ``entry`` executes (``entry`` included)."""
-        files = {entry}
-        todo: list[str] = []
-        if entry.suffix == ".py" and entry.is_file():
-            tree = ast.parse(entry.read_text(encoding="utf-8"), filename=str(entry))
-            for node in _runtime_nodes(tree):
-                if isinstance(node, ast.Import):
-                    todo.extend(alias.name for alias in node.names)
-                elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
-                    todo.append(node.module)
-                    todo.extend(f"{node.module}.{alias.name}" for alias in node.names)
-        todo.extend(entry_imports)
-        seen: set[str] = set()
-        plugins = False
-        while todo:
-            dotted = todo.pop()
-            if dotted.split(".")[0] in PLUGIN_HOSTS:
-                plugins = True
-            for name in self._executed(dotted):
-                if name in seen:
-                    continue
-                seen.add(name)
-                mod = self.modules[name]
-                files.add(mod.path)
-                files.update(self._package_data(mod))
-                todo.extend(mod.imports)
-            if plugins and not any(m.startswith("hydra_plugins.") for m in seen):
-                todo.extend(m for m in self.modules if m.startswith("hydra_plugins."))
-        return files
-
-    def all_files(self, folder: Path) -> set[Path]:
-        """Every file under ``folder`` that can be a code dep (no caches)."""
-        return {p for p in folder.rglob("*")
-                if p.is_file() and not any(part in _SKIP for part in p.parts)}
+def stamp_dep(stage: str) -> str:
+    """The stamp a stage depends on, as dvc.yaml says it."""
+    return f"{STAMP_DIR}/{stage}.txt"
 
 
 def _collapse(root: Path, graph: CodeGraph, files: set[Path]) -> list[str]:
@@ -170,21 +79,20 @@ def _collapse(root: Path, graph: CodeGraph, files: set[Path]) -> list[str]:
     return sorted(out)
 
 
-def entry_of(cmd: str, root: Path = ROOT) -> tuple[Path, list[str]] | None:
-    """The file a stage command runs, and the module it names when run with ``-m``."""
-    argv = shlex.split(cmd)
-    if len(argv) < 2 or Path(argv[0]).name not in ("python", "python3"):
+def code_files(cmd: str, graph: CodeGraph) -> list[Path] | None:
+    """The files a stage command runs, folders expanded (None: not a Python command)."""
+    entry = entry_of(cmd, graph.root)
+    if entry is None:
         return None
-    if argv[1] == "-m":
-        module = argv[2]
-        base = root.joinpath(*module.split("."))
-        path = base / "__init__.py" if base.is_dir() else base.with_suffix(".py")
-        return path, [module]
-    return root / argv[1], []
+    path, modules = entry
+    if not path.is_file():
+        raise SystemExit(f"codedeps: {cmd!r} runs {path}, which does not exist")
+    return graph.expand(graph.closure(path, modules))
 
 
 def code_deps(cmd: str, graph: CodeGraph) -> list[str] | None:
-    """The code deps of a stage command, as dvc.yaml paths (None: not a Python command)."""
+    """The code a stage command runs, as dvc.yaml paths with a folder standing for all of
+    its files (None: not a Python command)."""
     entry = entry_of(cmd, graph.root)
     if entry is None:
         return None
@@ -196,19 +104,16 @@ def code_deps(cmd: str, graph: CodeGraph) -> list[str] | None:
 
 @dataclass
 class StageDeps:
-    """One stage of dvc.yaml: its code deps as written and as its imports say."""
+    """One Python stage of dvc.yaml: what its deps say and the code it runs."""
 
     name: str
-    written: list[str]
-    wanted: list[str]
+    cmd: str
+    deps: list[str]
+    wanted: list[str]  # the code it runs (code_deps)
 
     @property
-    def missing(self) -> list[str]:
-        return [d for d in self.wanted if d not in self.written]
-
-    @property
-    def extra(self) -> list[str]:
-        return [d for d in self.written if d not in self.wanted]
+    def code_written(self) -> list[str]:
+        return [d for d in self.deps if _is_code(d)]
 
 
 def _is_code(dep: object) -> bool:
@@ -220,39 +125,112 @@ def _stage_bodies(doc: dict[str, Any]) -> Iterator[tuple[str, dict[str, Any]]]:
         yield name, (stage["do"] if "do" in stage else stage)
 
 
-def stage_deps(root: Path = ROOT) -> list[StageDeps]:
-    """Every stage of ``root/dvc.yaml`` that runs Python, with written and wanted deps."""
-    from ruamel.yaml import YAML
+def _python_stages(doc: dict[str, Any], graph: CodeGraph) -> Iterator[tuple[str, dict[str, Any]]]:
+    for name, body in _stage_bodies(doc):
+        if name != CODE_STAGE and entry_of(str(body["cmd"]), graph.root) is not None:
+            yield name, body
 
-    doc = YAML().load((root / "dvc.yaml").read_text(encoding="utf-8"))
+
+def _load(root: Path) -> dict[str, Any]:
+    import yaml
+
+    try:
+        loader: Any = yaml.CSafeLoader
+    except AttributeError:  # pragma: no cover - PyYAML without libyaml
+        loader = yaml.SafeLoader
+    doc = yaml.load((root / "dvc.yaml").read_text(encoding="utf-8"), Loader=loader)
+    assert isinstance(doc, dict)
+    return doc
+
+
+def stage_deps(root: Path = ROOT) -> list[StageDeps]:
+    """Every Python stage of ``root/dvc.yaml``, with its deps and the code it runs."""
+    doc = _load(root)
     graph = CodeGraph(root)
     out = []
-    for name, body in _stage_bodies(doc):
+    for name, body in _python_stages(doc, graph):
         wanted = code_deps(str(body["cmd"]), graph)
-        if wanted is None:
-            continue
-        written = [str(d) for d in body.get("deps", []) if _is_code(d)]
-        out.append(StageDeps(name, written, wanted))
+        assert wanted is not None
+        out.append(StageDeps(name, str(body["cmd"]), [str(d) for d in body.get("deps", [])],
+                             wanted))
     return out
 
 
+def stamps(root: Path = ROOT) -> dict[str, str]:
+    """stage -> the text of its stamp, from the code as it is now."""
+    doc = _load(root)
+    graph = CodeGraph(root)
+    out = {}
+    for name, body in _python_stages(doc, graph):
+        files = code_files(str(body["cmd"]), graph)
+        assert files is not None
+        out[name] = stamp_text(root, files)
+    return out
+
+
+def write_stamps(folder: Path, root: Path = ROOT) -> list[str]:
+    """Write every stage's stamp into ``folder`` (atomically; a stamp whose text is
+    unchanged is left alone, stamps of stages that are gone are removed); the stages
+    whose stamp changed."""
+    folder.mkdir(parents=True, exist_ok=True)
+    fresh = stamps(root)
+    changed = []
+    for name, text in fresh.items():
+        path = folder / f"{name}.txt"
+        if path.is_file() and path.read_text(encoding="utf-8") == text:
+            continue
+        tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+        changed.append(name)
+    for old in folder.glob("*.txt"):
+        if old.stem not in fresh:
+            old.unlink()
+    return changed
+
+
+def stale(folder: Path, root: Path = ROOT) -> list[str]:
+    """The stages whose stamp in ``folder`` differs from the code as it is now: what
+    ``dvc repro`` will rerun for the code's sake."""
+    out = []
+    for name, text in stamps(root).items():
+        path = folder / f"{name}.txt"
+        if not path.is_file() or path.read_text(encoding="utf-8") != text:
+            out.append(name)
+    return out
+
+
+def _code_stage(names: list[str]) -> dict[str, Any]:
+    return {"cmd": _STAMP_CMD, "deps": list(CODE_FOLDERS),
+            "outs": [{stamp_dep(n): {"cache": False}} for n in names]}
+
+
 def check(root: Path = ROOT) -> list[str]:
-    """One line per stage whose code deps in dvc.yaml differ from its imports."""
+    """One line per way dvc.yaml differs from one stamp per stage (``--write`` mends)."""
+    doc = _load(root)
+    graph = CodeGraph(root)
     problems = []
-    for s in stage_deps(root):
-        parts = []
-        if s.missing:
-            parts.append("missing " + ", ".join(s.missing))
-        if s.extra:
-            parts.append("not executed " + ", ".join(s.extra))
-        if parts:
-            problems.append(f"stage '{s.name}': " + "; ".join(parts))
+    names = []
+    for name, body in _python_stages(doc, graph):
+        names.append(name)
+        deps = [str(d) for d in body.get("deps", [])]
+        code = [d for d in deps if _is_code(d)]
+        if code:
+            problems.append(f"stage '{name}': code deps listed ({', '.join(code)}): its "
+                            "stamp stands for them")
+        if stamp_dep(name) not in deps:
+            problems.append(f"stage '{name}': missing its stamp {stamp_dep(name)}")
+    code_stage = doc["stages"].get(CODE_STAGE)
+    if code_stage != _code_stage(names):
+        problems.append(f"stage '{CODE_STAGE}': not the stamp writer for {', '.join(names)}")
     return problems
 
 
 def write(root: Path = ROOT) -> int:
-    """Rewrite the code deps of every Python stage in ``root/dvc.yaml``; the count changed."""
+    """Make dvc.yaml's code deps one stamp per stage (and the ``code`` stage write them);
+    the number of stages changed."""
     from ruamel.yaml import YAML
+    from ruamel.yaml.comments import CommentedMap, CommentedSeq
 
     yaml = YAML()
     yaml.indent(mapping=2, sequence=4, offset=2)
@@ -261,35 +239,80 @@ def write(root: Path = ROOT) -> int:
     doc = yaml.load(path.read_text(encoding="utf-8"))
     graph = CodeGraph(root)
     changed = 0
-    for _, body in _stage_bodies(doc):
-        wanted = code_deps(str(body["cmd"]), graph)
-        if wanted is None:
-            continue
+    names = []
+    for name, body in _python_stages(doc, graph):
+        names.append(name)
         deps = body.get("deps")
-        data = [d for d in deps if not _is_code(d)] if deps is not None else []
-        written = [str(d) for d in deps if _is_code(d)] if deps is not None else []
+        written = [str(d) for d in deps] if deps is not None else []
+        wanted = [d for d in written if not _is_code(d) and d != stamp_dep(name)]
+        wanted.append(stamp_dep(name))
         if written == wanted:
             continue
         changed += 1
         if deps is None:
-            body["deps"] = wanted
+            body["deps"] = CommentedSeq(wanted)
             continue
         deps.clear()
-        deps.extend([*data, *wanted])
+        deps.extend(wanted)
+    stage = _code_stage(names)
+    current = doc["stages"].get(CODE_STAGE)
+    if current is None or dict(current) != stage:
+        changed += 1
+        fresh = CommentedMap()
+        fresh["cmd"] = stage["cmd"]
+        fresh["deps"] = CommentedSeq(stage["deps"])
+        fresh["outs"] = CommentedSeq(
+            CommentedMap({k: CommentedMap(v)}) for o in stage["outs"] for k, v in o.items())
+        if current is None:
+            doc["stages"].insert(0, CODE_STAGE, fresh)
+            doc["stages"].yaml_set_comment_before_after_key(
+                CODE_STAGE, before="The code each stage runs, one stamp per stage "
+                "(tattotronix/devtools/codedeps.py)", indent=2)
+        else:
+            doc["stages"][CODE_STAGE] = fresh
     if changed:
         with path.open("w", encoding="utf-8") as fh:
             yaml.dump(doc, fh)
     return changed
 
 
+def _stamp_folder(root: Path) -> Path:
+    """Where the pipeline's stamps are (``paths.data`` of params.yaml, then ``code``)."""
+    import yaml
+
+    params = yaml.safe_load((root / "params.yaml").read_text(encoding="utf-8")) or {}
+    data = (params.get("paths") or {}).get("data") or "data"
+    return root / str(data) / "code"
+
+
 def main(argv: list[str] | None = None) -> int:
-    """``--check`` (exit 1 on any difference) or ``--write``."""
+    """``--write``, ``--check`` (exit 1 on any difference), ``--stamp DIR`` or ``--status``."""
     ap = argparse.ArgumentParser(prog="python -m tattotronix.devtools.codedeps",
-                                 description=__doc__.split("\n\n")[0])
+                                 description=(__doc__ or "").split("\n\n")[0])
     mode = ap.add_mutually_exclusive_group(required=True)
-    mode.add_argument("--check", action="store_true", help="compare dvc.yaml with the imports")
+    mode.add_argument("--check", action="store_true", help="compare dvc.yaml with the stages")
     mode.add_argument("--write", action="store_true", help="rewrite the code deps in dvc.yaml")
+    mode.add_argument("--stamp", metavar="DIR", help="write every stage's stamp into DIR")
+    mode.add_argument("--status", action="store_true",
+                      help="name the stages whose code changed since their stamps")
     args = ap.parse_args(argv)
+    if args.stamp:
+        if os.environ.get("DVC_STAGE"):
+            # the first stage of every repro: never build on a cut-short dvc.lock
+            try:
+                guard(Path.cwd(), stage_names(Path.cwd()))
+            except ConfigError as exc:
+                print(f"codedeps: error: {exc}", file=sys.stderr)
+                return 2
+        changed = write_stamps(Path(args.stamp))
+        print(f"codedeps: new code for {', '.join(changed)}" if changed else
+              "codedeps: every stage's code is as stamped")
+        return 0
+    if args.status:
+        names = stale(_stamp_folder(ROOT))
+        print("codedeps: code changed for " + ", ".join(names) + " (dvc repro reruns them)"
+              if names else "codedeps: no stage's code changed")
+        return 0
     if args.write:
         n = write()
         print(f"codedeps: {n} stage(s) rewritten in dvc.yaml" if n else
@@ -301,7 +324,7 @@ def main(argv: list[str] | None = None) -> int:
     if problems:
         print("codedeps: run python -m tattotronix.devtools.codedeps --write", file=sys.stderr)
         return 1
-    print("codedeps: every stage's code deps match its imports")
+    print("codedeps: every stage depends on its stamp")
     return 0
 
 

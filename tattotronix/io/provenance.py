@@ -5,8 +5,10 @@ from __future__ import annotations
 import copy
 import dataclasses
 import enum
+import functools
 import hashlib
 import json
+import os
 import sys
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
@@ -16,11 +18,13 @@ from typing import Any
 
 import numpy as np
 
+from tattotronix.io.codegraph import PACKAGES, CodeGraph, stamp_text, version_of_stamp
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.io.npz import READ_ERRORS
 
-__all__ = ["CODE_PATHS", "PROVENANCE_KEY", "code_version", "config_sha256", "file_sha256",
-           "only_keys", "plain_config", "provenance_json", "recorded_keys"]
+__all__ = ["CODE_VERSION_ENV", "PROVENANCE_KEY", "code_version", "config_sha256", "file_sha256",
+           "fixed_code_version", "only_keys", "plain_config", "provenance_json", "recorded_keys",
+           "stamp_version"]
 
 _ROOT = Path(__file__).resolve().parents[2]
 
@@ -28,39 +32,74 @@ _ROOT = Path(__file__).resolve().parents[2]
 PROVENANCE_KEY = "provenance"
 
 
-#: where "the code" lives: a change elsewhere (dvc.lock, metrics, documents, tests) is
-#: not a change of the code, and DVC rewrites some of those while a pipeline runs
-CODE_PATHS = ("tattotronix", "stages", "hydra_plugins")
+#: the environment variable that carries a run's code version to its worker processes
+CODE_VERSION_ENV = "TATTOTRONIX_CODE_VERSION"
 
 
 def code_version(root: Path | None = None) -> str:
-    """The version of the code that made a result: ``sha256:`` and a hash of the path and
-    bytes of every project file this process has imported (the stage script, and the
-    modules under :data:`CODE_PATHS`).
+    """The version of the code that made a result: ``sha256:`` and the hash of the stamp
+    of the code the process's entry point runs (:mod:`tattotronix.io.codegraph`: the
+    script or ``-m`` module and its static import closure, read from the source).
 
-    What the code *is*, not the commit it sits in. Those files are the stage's code deps in
-    dvc.yaml (``tattotronix.devtools.codedeps`` finds the same imports), so the version
-    moves exactly when DVC reruns the stage, and two clean clones, anywhere on disk, write
-    the same bytes. A git revision would move with every commit, documents and metrics
-    included, and a run on uncommitted code could only say ``-dirty``.
+    What the code *is*, not the commit it sits in, nor which modules a process happened
+    to import: two clean clones, anywhere on disk, with any number of workers, write the
+    same bytes. The stage runner fixes it once per run in :data:`CODE_VERSION_ENV` (under
+    DVC: the hash of the stage's stamp in ``<paths.data>/code/``, the dep DVC reruns the
+    stage on), so every worker records the same. A process with no project entry point
+    (a notebook, the tests) records the closure of the project modules it has imported.
     """
+    fixed = os.environ.get(CODE_VERSION_ENV)
+    if fixed:
+        return fixed
     root = (root or _ROOT).resolve()
-    dirs = tuple(root / name for name in CODE_PATHS)
-    files: set[str] = set()
-    for module in list(sys.modules.values()):
-        file = getattr(module, "__file__", None)
-        if not file:
-            continue
-        path = Path(file).resolve()
-        if path.suffix == ".py" and any(path.is_relative_to(d) for d in dirs):
-            files.add(path.relative_to(root).as_posix())
+    main = sys.modules.get("__main__")
+    file = getattr(main, "__file__", None)
+    spec = getattr(main, "__spec__", None)
+    entry = Path(file).resolve() if file else None
+    if entry is not None and entry.is_relative_to(root) and entry.suffix == ".py":
+        return _entry_version(root, entry, getattr(spec, "name", None))
+    imported = tuple(sorted(name for name in sys.modules
+                            if name.split(".")[0] in PACKAGES))
+    return _imports_version(root, imported)
+
+
+@contextmanager
+def fixed_code_version(version: str | None = None) -> Iterator[str]:
+    """Within the block, every :func:`code_version` of this process and of the processes
+    it starts is ``version`` (:func:`code_version` as computed now, if None)."""
+    old = os.environ.get(CODE_VERSION_ENV)
+    os.environ[CODE_VERSION_ENV] = value = version or code_version()
+    try:
+        yield value
+    finally:
+        if old is None:
+            os.environ.pop(CODE_VERSION_ENV, None)
+        else:
+            os.environ[CODE_VERSION_ENV] = old
+
+
+def stamp_version(stamp: Path) -> str | None:
+    """The code version a stage's stamp file stands for (None: no such file)."""
+    try:
+        return version_of_stamp(stamp.read_bytes())
+    except FileNotFoundError:
+        return None
+
+
+@functools.cache
+def _entry_version(root: Path, entry: Path, module: str | None) -> str:
+    graph = CodeGraph(root)
+    files = graph.closure(entry, [module] if module and module != "__main__" else [])
+    return version_of_stamp(stamp_text(root, graph.expand(files)))
+
+
+@functools.cache
+def _imports_version(root: Path, modules: tuple[str, ...]) -> str:
+    graph = CodeGraph(root)
+    files = graph.modules_closure(modules)
     if not files:
         return "unknown"
-    h = hashlib.sha256()
-    for name in sorted(files):
-        h.update(name.encode("utf-8") + b"\0")
-        h.update(hashlib.sha256((root / name).read_bytes()).digest())
-    return "sha256:" + h.hexdigest()
+    return version_of_stamp(stamp_text(root, graph.expand(files)))
 
 
 def file_sha256(file: str | Path) -> str:

@@ -1,0 +1,155 @@
+"""A dvc.lock cut short by an interrupt is refused with its fix, never built on."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tattotronix.config.dvclock import BACKUP, DamagedLockError, guard, restore
+from tattotronix.config.tracked import stage_names
+
+from .conftest import ROOT, default_signals
+
+PYTHON = sys.executable
+
+LOCK = """schema: '2.0'
+stages:
+  a:
+    cmd: python stages/a.py
+    outs:
+    - path: data/a.txt
+      hash: md5
+      md5: 0cc175b9c0f1b6a831c399e269772661
+      size: 1
+  b:
+    cmd: python stages/b.py
+    deps:
+    - path: data/a.txt
+      hash: md5
+      md5: 0cc175b9c0f1b6a831c399e269772661
+      size: 1
+"""
+
+
+def test_a_whole_lock_passes_and_is_kept_to_restore(tmp_path: Path) -> None:
+    (tmp_path / "dvc.lock").write_text(LOCK)
+    guard(tmp_path, ["a", "b"])
+    assert (tmp_path / BACKUP).read_text() == LOCK
+    (tmp_path / "dvc.lock").write_text("")
+    assert "restored" in restore(tmp_path)
+    assert (tmp_path / "dvc.lock").read_text() == LOCK
+
+
+@pytest.mark.parametrize("cut", [0, 20, len(LOCK) - 30])
+def test_a_lock_cut_short_is_refused_naming_the_fix(tmp_path: Path, cut: int) -> None:
+    (tmp_path / "dvc.lock").write_text(LOCK)
+    guard(tmp_path, ["a", "b"])  # the last whole one
+    (tmp_path / "dvc.lock").write_text(LOCK[:cut])
+    with pytest.raises(DamagedLockError, match="--restore") as err:
+        guard(tmp_path, ["a", "b"])
+    assert "\n" not in str(err.value)
+    assert (tmp_path / BACKUP).read_text() == LOCK  # the damaged one never replaces it
+
+
+def test_a_lock_that_lost_a_stage_is_refused_unless_the_stage_is_gone(tmp_path: Path) -> None:
+    (tmp_path / "dvc.lock").write_text(LOCK)
+    guard(tmp_path, ["a", "b"])
+    (tmp_path / "dvc.lock").write_text(LOCK.split("  b:")[0])  # cut between two stages
+    with pytest.raises(DamagedLockError, match=r"lost the records of 1 stage\(s\).*\(b\)"):
+        guard(tmp_path, ["a", "b"])
+    guard(tmp_path, ["a"])  # b is no longer in dvc.yaml: nothing is lost
+
+
+def test_no_lock_is_a_fresh_start(tmp_path: Path) -> None:
+    (tmp_path / "dvc.lock").write_text(LOCK)
+    guard(tmp_path, ["a", "b"])
+    (tmp_path / "dvc.lock").unlink()  # removed on purpose: everything reruns
+    guard(tmp_path, ["a", "b"])
+    assert not (tmp_path / BACKUP).exists()
+    with pytest.raises(DamagedLockError, match="git checkout dvc.lock"):
+        restore(tmp_path)
+
+
+def test_stage_names_are_dvcs() -> None:
+    names = stage_names(ROOT)
+    assert {"code", "config", "robot", "simulate@emblem", "simulate@lineart-vector"} <= set(
+        names)
+
+
+# --- Ctrl-C while DVC writes the lock ----------------------------------------------------
+
+def _env(clone: Path) -> dict[str, str]:
+    env = {**os.environ, "DVC_NO_ANALYTICS": "1", "PYTHONPATH": str(clone)}
+    env.pop("DVC_STAGE", None)
+    return env
+
+
+def _interrupt_while_locking(clone: Path) -> tuple[int, bool]:
+    """``dvc repro -f -s robot``, with SIGINT sent to its process group (as a terminal's
+    Ctrl-C is) the moment DVC starts rewriting dvc.lock after the stage; (DVC's exit
+    code, whether the signal landed before DVC had finished)."""
+    lock = clone / "dvc.lock"
+    before = lock.stat()
+    proc = subprocess.Popen([PYTHON, "-m", "dvc", "repro", "-f", "-s", "robot"], cwd=clone,
+                            env=_env(clone), stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL, start_new_session=True,
+                            preexec_fn=default_signals)
+    sent = False
+    deadline = time.monotonic() + 120
+    while proc.poll() is None and time.monotonic() < deadline:
+        now = lock.stat()
+        if (now.st_size, now.st_mtime_ns) != (before.st_size, before.st_mtime_ns):
+            os.killpg(proc.pid, signal.SIGINT)  # DVC has opened it to rewrite it
+            sent = True
+            break
+    rc = proc.wait(timeout=120)
+    return rc, sent
+
+
+def _dvc(clone: Path, *argv: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([PYTHON, "-m", "dvc", *argv], cwd=clone, env=_env(clone),
+                          capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.slow
+def test_ctrl_c_while_dvc_writes_the_lock_leaves_it_whole_or_refused(tmp_path: Path) -> None:
+    """20 tries: Ctrl-C lands while DVC rewrites dvc.lock after a stage. Each time the
+    lock is either whole, or refused (by DVC, or by the next stage of the project) and
+    `python -m tattotronix.config.dvclock --check` names the fix, which mends it."""
+    clone = tmp_path / "clone"
+    subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True)
+    first = _dvc(clone, "repro", "robot")
+    assert first.returncode == 0, first.stdout[-2000:] + first.stderr[-2000:]
+    whole_text = (clone / "dvc.lock").read_text()
+    stages = yaml.safe_load(whole_text)["stages"]
+    outcomes = {"whole": 0, "refused": 0}
+    for _ in range(20):
+        rc, sent = _interrupt_while_locking(clone)
+        assert sent, "DVC never rewrote dvc.lock"
+        check = subprocess.run([PYTHON, "-m", "tattotronix.config.dvclock", "--check"],
+                               cwd=clone, env=_env(clone), capture_output=True, text=True)
+        if check.returncode == 0:
+            lock = yaml.safe_load((clone / "dvc.lock").read_text())
+            assert set(lock["stages"]) >= set(stages)  # nothing lost
+            assert _dvc(clone, "status").returncode == 0
+            outcomes["whole"] += 1
+            continue
+        # refused: one line, exit 2, naming the fix; DVC or the project refuses to go on
+        assert check.returncode == 2, check.stderr
+        assert check.stderr.count("\n") == 1 and "--restore" in check.stderr, check.stderr
+        again = _dvc(clone, "repro")  # the first stage it runs (a lost one) refuses
+        assert again.returncode != 0, again.stdout[-2000:]
+        fixed = subprocess.run([PYTHON, "-m", "tattotronix.config.dvclock", "--restore"],
+                               cwd=clone, env=_env(clone), capture_output=True, text=True)
+        assert fixed.returncode == 0, fixed.stderr
+        assert set(yaml.safe_load((clone / "dvc.lock").read_text())["stages"]) >= set(stages)
+        assert _dvc(clone, "status").returncode == 0
+        outcomes["refused"] += 1
+    assert sum(outcomes.values()) == 20, outcomes
