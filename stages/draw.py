@@ -9,8 +9,9 @@
 Writes runs/<name>-<backend>/{log.npz, ink.png, ink_vs_plan.png} and
 metrics/runs/<name>-<backend>.json (tracking errors as the original defined them,
 docs/original.md, "5.5 Tracking error"; peak torque, real-time factor, ink IoU against
-the plan) under data/ when DVC runs it (the simulate stage), under runs/ by hand (README,
-"Hand runs"). On the arm: the plan first (preview=true stops there), then
+the plan; the verdict against the drawing's tolerance, docs/control.md, "Verdicts", with a
+WARNING: line when it is not ok) under data/ when DVC runs it (the simulate stage), under
+runs/ by hand (README, "Hand runs"). On the arm: the plan first (preview=true stops there), then
 runs/<name>-arm/{i2c.jsonl (dry run), poses.jsonl} and the arm state file.
 """
 

@@ -403,7 +403,9 @@ def test_ink_comparison_iou_and_worst_deviation() -> None:
     assert off.iou == pytest.approx(0.1 / 0.5, abs=0.04)  # overlap 0.1 of a 0.5 mm union
     assert off.max_dev_mm == pytest.approx(0.2, abs=0.03)
     empty = compare_ink(np.zeros_like(ia), ia, 0.02)
-    assert empty.iou == 0.0 and empty.metrics()["ink_max_dev_mm"] == math.inf
+    # no ink: no distance to give (null with the reason, never inf nor a perfect 0)
+    assert empty.iou == 0.0 and empty.metrics()["ink_max_dev_mm"] is None
+    assert empty.metrics()["ink_reason"] == "no worst deviation: the run inked nothing"
 
 
 def test_run_metrics_never_hold_nan(tmp_path: Path) -> None:

@@ -43,7 +43,9 @@ def test_draw_writes_log_metrics_and_ink_on_every_backend(data: Path, backend: s
     for key in ("realtime_factor", "wall_s"):
         assert isinstance(timings[key], float), key
     assert m["verdict"] == "ok" and m["completed"] and m["drawing"] == "planned"
-    assert m["ink_iou"] > 0.95
+    assert m["stable"] and m["within_tolerance"] and m["reason"] == ""
+    assert m["marking_max_um"] <= m["tolerance_um"] == 150.0  # half the 0.3 mm needle
+    assert m["ink_iou"] > 0.95 and m["ink_reason"] == "" and m["tracking_reason"] == ""
     assert m["marking_max_um"] < 100.0 and m["peak_torque_nm"] < 20.0
     run = data / "runs" / f"small-{backend}"
     with np.load(run / "log.npz", allow_pickle=False) as z:
@@ -76,7 +78,11 @@ def test_unstable_controller_is_reported_not_crashed(data: Path) -> None:
     text = (data / "metrics" / "runs" / "small-model.json").read_text()
     assert "NaN" not in text and "Infinity" not in text
     m = json.loads(text)
-    assert m["verdict"] in ("saturated", "diverged")
+    assert m["verdict"] in ("saturated", "diverged") and m["reason"]
+    # never ok, and never scored: the ink's scores are null, with the reason
+    assert m["ink_iou"] is None and m["ink_max_dev_mm"] is None and m["artwork"] is None
+    assert m["ink_reason"] == f"not scored: the run {m['verdict']}; {m['reason']}"
+    assert f"WARNING: draw small on model {m['verdict'].upper()}: " in r.stdout + r.stderr
     assert m["loop"]["wnT"] == pytest.approx(0.8)
     assert m["loop"]["margin"] < 1.0
 

@@ -175,7 +175,12 @@ def test_control_case_runs_whole_and_busiest_and_writes_its_metrics(draw_data: P
     assert m["study"] == "control" and m["case"] == "pid_g-wn80"
     assert m["settings"] == {"controller.structure": "pid_g", "controller.wn": 80.0}
     for w in ("whole", "busiest"):
-        assert m[w]["verdict"] == "ok" and m[w]["completed"]
+        assert m[w]["stable"] and m[w]["completed"]
+        # ok exactly when the worst marking error is within the tolerance (half the needle)
+        assert m[w]["tolerance_um"] == pytest.approx(150.0)
+        within = m[w]["marking_max_um"] <= m[w]["tolerance_um"]
+        assert m[w]["within_tolerance"] is within
+        assert m[w]["verdict"] == ("ok" if within else "out-of-tolerance")
         assert 0 < m[w]["settled_mean_um"] <= m[w]["marking_max_um"]
         assert "wall_s" not in m[w] and "realtime_factor" not in m[w]  # no machine noise
     assert m["busiest"]["sim_s"] <= 12.001 < m["whole"]["sim_s"]
@@ -220,7 +225,10 @@ def test_rate_case_past_the_boundary_fails_and_agrees_with_it(draw_data: Path) -
     chk = m["verdict_check"]
     assert m["plant_dt_s"] == 0.00025 and chk["substeps"] == 20
     assert chk["wnT"] == pytest.approx(0.8)
-    assert chk["predicted"] == "fail" and chk["verdict"] != "ok" and chk["agrees"]
+    assert chk["predicted"] == chk["simulated"] == "fail" and chk["agrees"]
+    assert chk["verdict"] in ("saturated", "diverged") and chk["verdict"] == m["whole"]["verdict"]
+    if chk["verdict"] == "diverged":  # no scores for a run that blew up
+        assert m["whole"]["marking_max_um"] is None and m["whole"]["tracking_reason"]
     assert chk["boundary_numeric_wnT"] < chk["boundary_wnT"]
 
 
@@ -254,7 +262,10 @@ def test_the_cluster_sweep_runs_through_submitit(draw_data: Path, tmp_path: Path
     cases = load_cases(draw_data, "rate", "small")
     small = "@" + ",".join(sorted(SMALL))
     assert sorted(cases) == ["1000hz-wn40" + small, "1000hz-wn80" + small]
-    assert all(c["verdict_check"]["verdict"] == "ok" for c in cases.values())
+    # both loops hold (the verdict also judges accuracy: wn 40 may miss the tolerance)
+    assert all(c["verdict_check"]["simulated"] == "ok" for c in cases.values())
+    assert all(c["verdict_check"]["verdict"] in ("ok", "out-of-tolerance")
+               for c in cases.values())
 
 
 # --- the stored study metrics ----------------------------------------------------------
@@ -296,19 +307,24 @@ def test_the_default_time_law_limits_are_the_fastest_that_meet_every_goal() -> N
     assert whole["travel_mean_um"] < 20.0
 
 
-def test_the_nine_rate_verdicts_agree_with_the_computed_boundary() -> None:
-    """As in the original's rate study (docs/original.md, "5.8 The rate study"): ok at wn T
-    <= 0.2, failing at >= 0.32, and the computed boundary sorts all nine."""
+def test_the_nine_rate_loops_agree_with_the_computed_boundary() -> None:
+    """As in the original's rate study (docs/original.md, "5.8 The rate study"): the loop
+    holds at wn T <= 0.2 and fails at >= 0.32, and the computed boundary sorts all nine.
+    Stability, not accuracy: a loop that holds may still miss the drawing's tolerance
+    (``out-of-tolerance``), and is then not ``ok``."""
     cases = _stored("rate")
     assert len(cases) == 9
     for name, c in cases.items():
         chk = c["verdict_check"]
-        assert chk["agrees"], (name, chk)
+        assert chk["agrees"] and chk["simulated"] == chk["predicted"], (name, chk)
+        assert chk["verdict"] == c["whole"]["verdict"], name
         if chk["wnT"] <= 0.2 + 1e-12:
-            assert chk["verdict"] == "ok", name
+            assert chk["simulated"] == "ok", name
+            within = c["whole"]["marking_max_um"] <= c["whole"]["tolerance_um"]
+            assert chk["verdict"] == ("ok" if within else "out-of-tolerance"), name
         if chk["wnT"] >= 0.32 - 1e-12:
+            assert chk["simulated"] == "fail", name
             assert chk["verdict"] in ("saturated", "diverged"), name
-        assert c["busiest"]["verdict"] == chk["verdict"] or chk["verdict"] != "ok"
 
 
 def test_control_study_orders_like_the_original() -> None:
@@ -318,7 +334,9 @@ def test_control_study_orders_like_the_original() -> None:
     does not on the compensated emblem at wn 20: the inertia, not gravity, dominates
     there; docs/control.md.)"""
     c = _stored("control")
-    ok = [w for w in (10, 20, 40, 80, 160) if c[f"pid_g-wn{w}"]["whole"]["verdict"] == "ok"]
+    # every bandwidth whose loop held (accurate or not)
+    ok = [w for w in (10, 20, 40, 80, 160)
+          if c[f"pid_g-wn{w}"]["whole"]["verdict"] in ("ok", "out-of-tolerance")]
     settled = [c[f"pid_g-wn{w}"]["whole"]["settled_mean_um"] for w in ok]
     assert settled == sorted(settled, reverse=True)
     for window in ("whole", "busiest"):

@@ -757,6 +757,11 @@ class DrawConfig:
     settle_periods: float = bounded(4.0, lo=0, hi=1000)
     ink_res_mm: float = bounded(0.05, lo=MIN_INK_RES_MM, hi=10, unit="mm",
                                 why="the ink raster's pixel")
+    # a run is "ok" only while its worst marking error stays within this many needle widths
+    # (toolpath.needle_width_mm): within half a width the drawn line still covers the
+    # centreline it was planned on (tattotronix/control/verdict.py)
+    tolerance_needle_widths: float = bounded(
+        0.5, lo=0, lo_open=True, hi=100, why="the marking tolerance, in needle widths")
     progress: bool = True  # a progress bar with simulated time and real-time factor
 
 

@@ -41,6 +41,7 @@ from tattotronix.control.ink import (
 from tattotronix.control.reference import reference_at_ticks, resolve_window
 from tattotronix.control.simulate import Loop, Run, simulate, substeps_per_tick
 from tattotronix.control.tracking import TrackingErrors, tracking_errors
+from tattotronix.control.verdict import Judgement, Tolerance, judge, length_text
 from tattotronix.errors import StageInputMissing, TattotronixError
 from tattotronix.io.artifacts import (
     TRAJECTORY,
@@ -252,6 +253,7 @@ class ClosedLoop:
         wn: the loop's bandwidth, rad/s ("settled" drops ``settle_periods / wn`` after
             each needle entry).
         period_s: the tick, s.
+        tolerance: the drawing's marking tolerance (:mod:`tattotronix.control.verdict`).
     """
 
     drawing: Drawing
@@ -264,6 +266,7 @@ class ClosedLoop:
     plant_dt_s: float
     wn: float
     period_s: float
+    tolerance: Tolerance
 
     def samples(self) -> NDArray[np.intp]:
         """Tick indices of the error samples."""
@@ -287,14 +290,27 @@ class ClosedLoop:
         return tracking_errors(self.run.t[idx], tip, tip_ref, self.drawing.t,
                                self.drawing.kind, self.wn, settle_periods)
 
+    def judge(self, err: TrackingErrors) -> Judgement:
+        """The run's verdict: the loop's, and the marking error against the tolerance
+        (:func:`tattotronix.control.verdict.judge`)."""
+        worst = err.metrics()["marking_max_um"]
+        return judge(self.run.verdict, self.run.reason,
+                     float(worst) if isinstance(worst, int | float) else None, self.tolerance)
+
     def metrics(self, err: TrackingErrors) -> JsonDict:
-        """Tracking, verdict, controller, plant and loop analysis: plain JSON values."""
+        """Tracking, verdict, controller, plant and loop analysis: plain JSON values. A run
+        that diverged has no error statistics (None, ``tracking_reason`` says why)."""
+        verdict = self.judge(err)
+        errors = err.metrics() if verdict.stable else err.unscored(
+            f"not scored: the run diverged; {self.run.reason}; the errors of the "
+            f"{self.run.sim_s:.3f} s that ran are in its log and say nothing of the drawing")
         return _finite({
             "name": self.drawing.name, "backend": self.backend,
             "drawing": self.drawing.origin,
             "window_s": [self.window[0], self.window[1] - self.window[0]],
-            **err.metrics(),
-            **self.run.summary(),  # peak torque, verdict, real-time factor, wall/sim time
+            **errors,
+            **self.run.summary(),  # peak torque, real-time factor, wall/sim time
+            **verdict.metrics(),  # the verdict and its reason, stable, within tolerance
             "controller": self.controller,
             "loop": self.analysis if self.analysis is not None else {},
             "sample_s": self.sample_every * self.period_s,
@@ -393,7 +409,8 @@ def run_closed_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Dr
     finally:
         bar.close()
     return ClosedLoop(drawing, run, controller.summary(), analysis, (start, end),
-                      sample_every, backend, settings.dt_s, gains.wn, controller.period_s)
+                      sample_every, backend, settings.dt_s, gains.wn, controller.period_s,
+                      Tolerance.from_config(cfg))
 
 
 def warm_up() -> None:
@@ -438,32 +455,40 @@ def score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
     corners = None if mask is None else np.array([[mask.xs[0], mask.ys[0]],
                                                   [mask.xs[-1], mask.ys[-1]]])
     grid, sim_ink, plan_ink, ink = score_ink(cfg, tip, tip_ref, corners)
-    against_art: dict[str, Any] = {"artwork": None, "artwork_plan": None}
+    verdict = loop.judge(err)
+    unscored = verdict.unscored_ink()  # a run that saturated or diverged: no ink scores
+    if unscored:
+        ink = ink.unscored(unscored)
+    against_art: dict[str, Any] = {"artwork": None, "artwork_plan": None, "artwork_reason":
+                                   "no artwork to compare the ink with (no stored mask)"}
     art = None if mask is None else artwork_on(mask, grid)
     sim_art = None
     if art is not None:
         lines = _planned_lines(out.data, drawing)
         sim_lw, plan_lw = ((line_width(sim_ink, grid, *lines), line_width(plan_ink, grid, *lines))
                            if lines else (None, None))
-        sim_art = artwork_fidelity(art, sim_ink, res, lines=sim_lw)
-        against_art = {"artwork": sim_art.metrics(),
-                       "artwork_plan": artwork_fidelity(art, plan_ink, res,
-                                                        lines=plan_lw).metrics()}
+        sim_art = None if unscored else artwork_fidelity(art, sim_ink, res, lines=sim_lw)
+        # the plan's ink is the whole plan's only where the run ran to the end
+        plan_art = (artwork_fidelity(art, plan_ink, res, lines=plan_lw).metrics()
+                    if run.completed else None)
+        against_art = {"artwork": None if sim_art is None else sim_art.metrics(),
+                       "artwork_plan": plan_art, "artwork_reason": unscored}
 
     run_folder = run_dir(out.root, label)
     dpi = 25.4 / res
     _ink_image(sim_ink).save(out.tmp_path(run_folder / "ink.png"), format="PNG", dpi=(dpi, dpi))
     needle = float(cfg.toolpath.needle_width_mm)
+    pixels = ("" if ink.max_dev_mm is None else
+              f" ({ink.max_dev_mm / res:.3g} × the {res:g} mm pixel)")
     plan_ink_figure(
         sim_ink, plan_ink, grid, out.tmp_path(run_folder / "ink_vs_plan.png"),
         f"{drawing.name} on {backend}: the simulated ink against the planned ink (needle "
-        f"{needle:g} mm wide)\nIoU {ink.iou:.4f}; worst deviation {ink.max_dev_mm:.2f} mm "
-        f"({ink.max_dev_mm / res:.3g} × the {res:g} mm pixel)")
-    if art is not None and sim_art is not None:
+        f"{needle:g} mm wide)\n{ink.text()}{pixels}")
+    if art is not None:
         artwork_ink_figure(
             art, sim_ink, grid, out.tmp_path(run_folder / "ink_vs_artwork.png"),
             f"{drawing.name} on {backend}: the simulated ink against the artwork (needle "
-            f"{needle:g} mm wide)", sim_art)
+            f"{needle:g} mm wide)", sim_art if sim_art is not None else f"ink {unscored}")
     RunLogRecord(
         joints=desc.joint_names, t=run.t[idx], q=run.q[idx], qd=run.qd_samples,
         tau=run.tau[idx], q_ref=run.ref.q[idx], qd_ref=run.ref.qd[idx], tip=tip[idx],
@@ -480,11 +505,15 @@ def score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
     }))
     out.write_json(out.path("metrics", "runs", f"{label}.json"), metrics)
     out.write_timings("runs", label, run.timings())
-    log.info("draw %s on %s: %s; settled %s / %s um (mean / max), marking max %s um, "
-             "peak %.3f N m, ink IoU %.3f, %.0fx real time (%.1f s, the %s loop)",
-             drawing.name, backend, run.verdict, _fmt(metrics["settled_mean_um"]),
-             _fmt(metrics["settled_max_um"]), _fmt(metrics["marking_max_um"]),
-             run.peak_torque_nm, ink.iou, run.realtime_factor, run.wall_s, run.loop)
+    iou = "-" if ink.iou is None else f"{ink.iou:.3f}"
+    log.info("draw %s on %s: %s; settled %s / %s (mean / max), marking max %s, peak %.3f N m, "
+             "ink IoU %s, %.0fx real time (%.1f s, the %s loop)",
+             drawing.name, backend, verdict.verdict, _length(metrics["settled_mean_um"]),
+             _length(metrics["settled_max_um"]), _length(metrics["marking_max_um"]),
+             run.peak_torque_nm, iou, run.realtime_factor, run.wall_s, run.loop)
+    warning = verdict.warning(f"{drawing.name} on {backend}", real_arm=backend == "servo")
+    if warning:
+        log.warning("%s", warning)
     return metrics
 
 
@@ -534,5 +563,6 @@ def _artwork_mask(cfg: Config, data: Path, drawing: Drawing) -> InkMask | None:
     return mask_of(cfg, source, drawing.name)
 
 
-def _fmt(v: object) -> str:
-    return f"{v:.2f}" if isinstance(v, int | float) else "-"
+def _length(um: object) -> str:
+    """A metric in µm, in µm or (from a millimetre up) in mm; ``-`` where it is None."""
+    return length_text(float(um) if isinstance(um, int | float) else None)

@@ -4,8 +4,10 @@ At every controller tick ``k`` the plant's state is measured (and logged), the c
 computes a torque, and the plant integrates ``substeps = period / dt`` steps with it held.
 Every ``sample_every`` ticks the run is checked: a non-finite state, an engine warning or
 a joint further than ``abort_error_rad`` from its reference ends it as *diverged* (the
-log keeps what ran; nothing is NaN). The verdict is then ``diverged``, ``saturated`` (the
-torque reached 0.999 of its limit) or ``ok``.
+log keeps what ran; nothing is NaN). The loop's verdict is then ``diverged``,
+``saturated`` (a torque reached 0.999 of its limit) or ``ok`` (bounded and unsaturated).
+That says nothing of accuracy: a drawing's verdict, which also judges the marking error
+against the drawing's tolerance, is :func:`tattotronix.control.verdict.judge`'s.
 
 Two paths run the same controller (docs/control.md, "The loop inside the engine"):
 
@@ -24,7 +26,7 @@ from __future__ import annotations
 
 import gc
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Literal
 
@@ -38,7 +40,7 @@ from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.plants.base import EnginePid, Plant
 
-__all__ = ["LOOPS", "Loop", "Run", "simulate", "substeps_per_tick"]
+__all__ = ["LOOPS", "SATURATION", "Loop", "Run", "saturation", "simulate", "substeps_per_tick"]
 
 Array = NDArray[np.float64]
 
@@ -65,8 +67,10 @@ class Run:
         tau: (K, n) torque held over each tick, N m.
         ref: the reference (all ticks, also those not run).
         completed: whether every tick ran.
-        verdict: ``ok``, ``saturated`` or ``diverged``.
-        reason: why it diverged ("" otherwise).
+        verdict: the loop's verdict: ``ok`` (bounded and unsaturated: nothing about its
+            accuracy, which :func:`tattotronix.control.verdict.judge` adds), ``saturated``
+            or ``diverged``.
+        reason: why it diverged or saturated ("" otherwise).
         wall_s: wall time of the loop, s.
         substeps: plant steps per tick.
         loop: the path that ran the controller: ``engine`` or ``python``.
@@ -85,6 +89,11 @@ class Run:
     wall_s: float
     substeps: int
     loop: str = "python"
+
+    @property
+    def stable(self) -> bool:
+        """The loop stayed bounded to the end (it did not diverge)."""
+        return self.verdict != "diverged"
 
     @property
     def sim_s(self) -> float:
@@ -107,10 +116,12 @@ class Run:
         return {"wall_s": self.wall_s, "realtime_factor": self.realtime_factor}
 
     def summary(self) -> JsonDict:
-        """JSON-ready; the same on every run of the same inputs (no wall times)."""
+        """JSON-ready; the same on every run of the same inputs (no wall times). The
+        verdict is the loop's (a drawing's metrics replace it and its reason with the
+        judged ones: :meth:`tattotronix.control.drawing.ClosedLoop.metrics`)."""
         return {"backend": self.backend, "verdict": self.verdict, "reason": self.reason,
-                "completed": self.completed, "sim_s": self.sim_s, "ticks": len(self.t),
-                "substeps": self.substeps, "loop_path": self.loop,
+                "stable": self.stable, "completed": self.completed, "sim_s": self.sim_s,
+                "ticks": len(self.t), "substeps": self.substeps, "loop_path": self.loop,
                 "peak_torque_nm": self.peak_torque_nm}
 
 
@@ -203,19 +214,38 @@ def simulate(plant: Plant, controller: Controller, ref: Reference, *, sample_eve
     tau_arr = tau_log[:k]
     tau_arr[~np.isfinite(tau_arr)] = 0.0
     completed = k == ref.ticks and not reason
-    lim = controller.torque_limit
     if reason:
         verdict = "diverged"
-    elif len(tau_arr) and np.any(np.abs(tau_arr) >= SATURATION * lim):
-        verdict = "saturated"
     else:
-        verdict = "ok"
+        reason = saturation(tau_arr, controller.torque_limit, ref.t,
+                            controller.dynamics.joint_names)
+        verdict = "saturated" if reason else "ok"
     qd_s = qd_log[: (k - 1) // every + 1 if k else 0]
     qd_s[~np.isfinite(qd_s)] = 0.0
     return Run(backend=plant.backend, t=ref.t[:k].copy(), q=q_log[:k], qd_samples=qd_s,
                sample_every=every, tau=tau_arr, ref=ref, completed=completed,
                verdict=verdict, reason=reason, wall_s=wall, substeps=sub,
                loop="python" if engine is None else "engine")
+
+
+def saturation(tau: Array, limit: float | Array, t: Array, joints: Sequence[str],
+               what: str = "its limit") -> str:
+    """Why a run is saturated: the first tick at which a torque reached
+    :data:`SATURATION` of its limit ("" if none did).
+
+    Args:
+        tau: (K, n) torques, N m. limit: the limit (scalar or (n,)), N m.
+        t: the ticks' times, s. joints: the joints' names.
+        what: names the limit (``its limit``, ``its servo's stall torque``).
+    """
+    lim = np.broadcast_to(np.asarray(limit, dtype=np.float64), tau.shape[1:])
+    hit = np.abs(tau) >= SATURATION * lim
+    if not hit.any():
+        return ""
+    tick, joint = (int(i) for i in np.argwhere(hit)[0])
+    name = joints[joint] if joint < len(joints) else f"joint {joint}"
+    return (f"the torque of {name} reached {what} ({float(lim[joint]):.3g} N m) at "
+            f"t = {float(t[tick]):.3f} s")
 
 
 #: (ticks that ran, why it stopped ("" if it did not), (q, qd at the samples, tau) logs)

@@ -9,7 +9,9 @@
 * Needle entries are the rising edges of *down*; *settled* samples are the down samples
   outside ``[entry, entry + settle_periods / wn)`` after every entry.
 * Reported: settled mean and max, marking mean and max (all down samples), travel mean
-  (samples not down), in micrometres.
+  (samples not down), in micrometres. A statistic with no sample to take it over is
+  None, and ``tracking_reason`` says why (:data:`ERROR_KEYS`; a run that diverged has
+  none at all: :meth:`TrackingErrors.unscored`).
 """
 
 from __future__ import annotations
@@ -24,10 +26,24 @@ from tattotronix.config.schema import DrawConfig
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.trajectory.path import MARK
 
-__all__ = ["TrackingErrors", "busiest_window", "down_at", "entry_times", "tracking_errors"]
+__all__ = ["ERROR_KEYS", "TrackingErrors", "busiest_window", "down_at", "entry_times",
+           "tracking_errors"]
 
 Array = NDArray[np.float64]
 UM_PER_M = 1e6
+
+#: the error statistics of :meth:`TrackingErrors.metrics`, each with why it can be None
+ERROR_KEYS: dict[str, str] = {
+    "settled_mean_um": "no settled marking sample",
+    "settled_max_um": "no settled marking sample",
+    "marking_mean_um": "no marking sample",
+    "marking_max_um": "no marking sample",
+    "entry_max_um": "no marking sample within the settling time after an entry",
+    "travel_mean_um": "no travel sample",
+    "worst_um": "no sample",
+    "worst_at_s": "no sample",
+    "marking_worst_at_s": "no marking sample",
+}
 
 
 def down_at(t_points: Array, kind: NDArray[np.int8], t: Array) -> NDArray[np.bool_]:
@@ -79,10 +95,7 @@ class TrackingErrors:
     settled: NDArray[np.bool_]
     entries: int
 
-    def metrics(self) -> JsonDict:
-        """``settled_mean_um``, ``settled_max_um``, ``marking_mean_um``, ``marking_max_um``,
-        ``travel_mean_um``, ``entry_max_um`` (the worst marking sample within the settling
-        time after an entry; None where no sample qualifies), ``samples``, ``entries``."""
+    def _stats(self) -> JsonDict:
         e = self.error_m * UM_PER_M
 
         def stat(sel: NDArray[np.bool_], f: Any) -> float | None:
@@ -103,6 +116,30 @@ class TrackingErrors:
             "marking_samples": int(self.down.sum()),
             "entries": self.entries,
         }
+
+    def metrics(self) -> JsonDict:
+        """``settled_mean_um``, ``settled_max_um``, ``marking_mean_um``, ``marking_max_um``,
+        ``travel_mean_um``, ``entry_max_um`` (the worst marking sample within the settling
+        time after an entry), ``worst_um`` and where, ``samples``, ``entries``; a
+        statistic with no sample is None, and ``tracking_reason`` names each and why
+        ("" when every one is given)."""
+        m = self._stats()
+        why: dict[str, list[str]] = {}
+        for key, reason in ERROR_KEYS.items():
+            if m[key] is None:
+                why.setdefault(reason, []).append(key)
+        m["tracking_reason"] = "; ".join(f"{', '.join(keys)}: {reason}"
+                                         for reason, keys in why.items())
+        return m
+
+    def unscored(self, reason: str) -> JsonDict:
+        """:meth:`metrics` with every error statistic None, for ``reason`` (a run that
+        diverged: its errors before the blow-up say nothing of the drawing, and the
+        worst is unbounded); the sample counts stay."""
+        m = self._stats()
+        m.update(dict.fromkeys(ERROR_KEYS))
+        m["tracking_reason"] = reason
+        return m
 
 
 def tracking_errors(t: Array, tip: Array, tip_ref: Array, t_points: Array,

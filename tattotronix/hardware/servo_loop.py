@@ -16,6 +16,13 @@ Steps:
 4. the servo arm plays those frames (:class:`~tattotronix.plants.servo_plant.ServoArm`);
    the links' angles at every plant step are the run, against the drawing's reference
    at the same steps.
+
+The verdict is every backend's (:mod:`tattotronix.control.verdict`): the marking error
+against the drawing's tolerance (``draw.tolerance_needle_widths`` of the needle), so a
+servo arm that would miss the drawing by millimetres ends ``out-of-tolerance``, with a
+``WARNING:`` line that says by how much the real arm will miss; ``saturated`` where a
+servo reached its stall torque (with ``servo.lag``), ``diverged`` where a joint left its
+reference by ``plant.abort_error_rad``.
 """
 
 from __future__ import annotations
@@ -31,7 +38,8 @@ import numpy as np
 from tattotronix.config.schema import Config
 from tattotronix.control.drawing import ClosedLoop, Drawing, resolve_drawing, score_and_write
 from tattotronix.control.reference import reference_at_ticks, resolve_window
-from tattotronix.control.simulate import Run
+from tattotronix.control.simulate import Run, saturation
+from tattotronix.control.verdict import Tolerance
 from tattotronix.errors import StageInputMissing, TattotronixError
 from tattotronix.hardware.arm import build_program, calibration_from_config
 from tattotronix.hardware.program import ServoProgram
@@ -167,16 +175,20 @@ def run_servo_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Dra
         reason = (f"a joint left its reference by more than plant.abort_error_rad="
                   f"{float(cfg.plant.abort_error_rad):g} rad at {ref.t[bad[0]]:.3f} s")
     stall = np.array([s.stall_nm for s in setup.specs])
-    saturated = bool(cfg.servo.lag) and bool(np.any(np.abs(played.tau[:k]) >= 0.999 * stall))
+    verdict = "diverged" if reason else "ok"
+    if not reason and cfg.servo.lag:  # without lag the servos are stiff: no torque limit
+        reason = saturation(played.tau[:k], stall, ref.t[:k], desc.joint_names,
+                            "its servo's stall torque")
+        verdict = "saturated" if reason else "ok"
     run = Run(backend="servo", t=ref.t[:k].copy(), q=q, qd_samples=played.qd[:k:sample_every],
-              sample_every=sample_every, tau=played.tau[:k], ref=ref, completed=not reason,
-              verdict="diverged" if reason else ("saturated" if saturated else "ok"),
-              reason=reason, wall_s=wall, substeps=1, loop="engine")
+              sample_every=sample_every, tau=played.tau[:k], ref=ref,
+              completed=verdict != "diverged", verdict=verdict, reason=reason, wall_s=wall,
+              substeps=1, loop="engine")
     wn = _servo_wn(setup.specs, bool(cfg.servo.lag), float(cfg.servo.ideal_wn))
     summary = _summary(setup, cfg)
     return ClosedLoop(drawing, run, {**summary, "wn": wn}, None,
                       (t0, t0 + (k - 1) * settings.dt_s), sample_every, "servo",
-                      settings.dt_s, wn, settings.dt_s)
+                      settings.dt_s, wn, settings.dt_s, Tolerance.from_config(cfg))
 
 
 def _servo_wn(specs: tuple[ServoSpec, ...], lag: bool, ideal_wn: float) -> float:

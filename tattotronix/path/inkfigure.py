@@ -232,13 +232,14 @@ def plan_ink_figure(sim: Mask, plan: Mask, grid: InkGrid, path: Path, title: str
 
 
 def artwork_ink_figure(art: Mask, ink: Mask, grid: InkGrid, path: Path, head: str,
-                       fidelity: ArtworkFidelity) -> None:
+                       fidelity: ArtworkFidelity | str) -> None:
     """Ink against the artwork (dark grey ink on the artwork, light grey artwork left
     uninked, red ink outside the artwork); the zoom on the ink pixel farthest outside
     the artwork, in its densest cluster. The title is ``head`` and a line of
-    ``fidelity``'s numbers."""
+    ``fidelity``'s numbers (or, for ink that is not scored, the reason why)."""
     f = fidelity
-    title = (f"{head}\nink outside the artwork: {100 * f.bleed_share:.2f} % of the ink, at "
+    title = (f"{head}\n{f}" if isinstance(f, str) else
+             f"{head}\nink outside the artwork: {100 * f.bleed_share:.2f} % of the ink, at "
              f"most {f.bleed_max_mm:.2f} mm out;  artwork inked: {100 * f.coverage:.1f} %;  "
              f"edge error {f.edge_mean_mm:.3f} mm mean, {f.edge_max_mm:.2f} mm worst")
     bleed = ink & ~art

@@ -75,6 +75,7 @@ from tattotronix.control.drawing import (
     warm_up,
 )
 from tattotronix.control.tracking import entry_times
+from tattotronix.control.verdict import length_text
 from tattotronix.errors import ConfigError, TattotronixError
 from tattotronix.hardware.servo_loop import run_servo_loop
 from tattotronix.io.artifacts import StudySeriesRecord, make_provenance
@@ -308,7 +309,7 @@ class ClosedLoopStudy(ABC):
             series.update({f"{label}_{k}": v for k, v in s.items()})
             if not controller:  # the loop facts of the first window (the whole drawing)
                 analysis, controller = loop.analysis or {}, loop.controller
-            log.info("%s %s %s (%s): %s; settled %s / marking max %s um, peak %.3f N m "
+            log.info("%s %s %s (%s): %s; settled %s / marking max %s, peak %.3f N m "
                      "(%s loop, %.0fx real time)", self.name, name, case, label,
                      m["verdict"], _fmt(m["settled_mean_um"]), _fmt(m["marking_max_um"]),
                      m["peak_torque_nm"], loop.run.loop, loop.run.realtime_factor)
@@ -531,16 +532,18 @@ def _as_float(value: JsonValue, what: str, missing: float | None = None) -> floa
     raise ValueError(f"{what}: {value!r} is not a number")
 
 
-def _fmt(v: object) -> str:
-    return f"{v:.2f}" if isinstance(v, int | float) else "-"
+def _fmt(um: object) -> str:
+    """A metric in µm, in µm or (from a millimetre up) in mm; ``-`` where it is None."""
+    return length_text(float(um) if isinstance(um, int | float) else None)
 
 
 # --- what the figures share ----------------------------------------------------------------
 
 #: the windows of a case: key, legend label, line style
 WINDOWS = (("whole", "whole drawing", "-"), ("busiest", "busiest window", "--"))
-#: a run's verdict -> its colour
-VERDICT_COLOUR = {"ok": "#2a9d55", "saturated": "#e08a1e", "diverged": "#c0392b"}
+#: a run's verdict -> its colour (every verdict of :data:`tattotronix.control.verdict.VERDICTS`)
+VERDICT_COLOUR = {"ok": "#2a9d55", "out-of-tolerance": "#7b5ea7", "saturated": "#e08a1e",
+                  "diverged": "#c0392b"}
 
 
 def window_value(case: StudyCase, window: str, key: str) -> float:

@@ -11,6 +11,7 @@ Cases: ``study.control.cases`` (name -> structure and wn); a case sweeps
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -62,13 +63,27 @@ def _log_log_wn(ax: Axes, ylabel: str, title: str) -> None:
 
 def _verdicts(ax: Axes, sweep: list[tuple[float, StudyCase]],
               value: Callable[[StudyCase], float]) -> None:
-    """Name the verdict of every whole-drawing run that did not end ok, left of its point."""
+    """Name the verdict of every whole-drawing run whose loop failed (saturated or
+    diverged), left of its point (where it has one). An out-of-tolerance run's loop held:
+    the tip-error panel's tolerance line shows it."""
     for w, c in sweep:
         verdict = c.text("whole", "verdict")
-        if verdict != "ok":
-            ax.annotate(verdict, (w, value(c)), xytext=(-8, 0), textcoords="offset points",
+        y = value(c)
+        if verdict in ("saturated", "diverged") and math.isfinite(y):
+            ax.annotate(verdict, (w, y), xytext=(-8, 0), textcoords="offset points",
                         fontsize=8, color=VERDICT_COLOUR.get(verdict, "k"), ha="right",
                         va="center")
+
+
+def _tolerance(ax: Axes, cases: Cases) -> None:
+    """The drawing's marking tolerance (where the cases state one), in the legend: a worst
+    marking error above it is ``out-of-tolerance``."""
+    tol = {t for t in (c.number("whole", "tolerance_um") for c in cases.values())
+           if math.isfinite(t)}
+    if len(tol) == 1:
+        t = tol.pop()
+        ax.axhline(t, color=VERDICT_COLOUR["out-of-tolerance"], lw=1.0, ls="--",
+                   label=f"tolerance, {t:g} µm: worst marking above is out-of-tolerance")
 
 
 class ControlStudy(ClosedLoopStudy):
@@ -132,6 +147,7 @@ class ControlStudy(ClosedLoopStudy):
         ax.axhline(20, color="0.5", lw=0.8, ls="-.")
         ax.text(wns[0] if wns else 10, 20, " 20 µm goal", fontsize=8, va="bottom",
                 color="0.35")
+        _tolerance(ax, cases)
         _log_log_wn(ax, "tip error, µm", "pid_g across the bandwidth: tip error")
 
         ax = axes[1, 0]

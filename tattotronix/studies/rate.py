@@ -4,8 +4,9 @@ original's: docs/original.md, "5.8 The rate study"): loop rate x bandwidth, the 
 
 Cases: ``study.rate_hz`` x ``study.rate_wn``; a case sweeps ``controller.rate_hz`` and
 ``controller.wn`` with the plant at ``study.rate_plant_dt_s``, is named ``500hz-wn80``,
-runs over the whole drawing and its busiest window, and sets each run's verdict beside the
-computed sampled-loop boundary (:func:`rate_verdict_check`). Stage ``rate``
+runs over the whole drawing and its busiest window, and sets each run's stability beside the
+computed sampled-loop boundary (:func:`rate_verdict_check`), with its verdict (which also
+judges accuracy: a stable loop can still miss the drawing's tolerance). Stage ``rate``
 (``stages/rate.py``); the machinery is :class:`tattotronix.studies.base.ClosedLoopStudy`.
 """
 
@@ -17,6 +18,7 @@ from pathlib import Path
 
 from tattotronix.config.schema import Config, StudyConfig
 from tattotronix.control.drawing import ClosedLoop
+from tattotronix.control.verdict import length_text
 from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict, JsonValue
 from tattotronix.kinematics import Chain
@@ -33,22 +35,28 @@ __all__ = ["STUDY", "RateStudy", "rate_verdict_check"]
 
 
 def rate_verdict_check(loop: ClosedLoop) -> JsonDict:
-    """The run's verdict beside the computed sampled-loop boundary (docs/original.md, "5.4
-    Loop facts" and "5.8 The rate study").
+    """The run's stability beside the computed sampled-loop boundary (docs/original.md,
+    "5.4 Loop facts" and "5.8 The rate study").
 
     ``boundary_wnT`` is 2/(3 lambda_max) (exact hold), ``boundary_numeric_wnT`` the same
     loop with the plant's Euler sub-steps; ``predicted`` is ``ok`` below the latter.
+    ``simulated`` is what the run showed, in the same terms: ``ok`` where the loop stayed
+    bounded and under its torque limit, ``fail`` where it diverged or saturated (a
+    saturated loop is no longer the linear loop the boundary is computed for, so it counts
+    on the failing side, as the original's did); ``agrees`` compares the two. Accuracy
+    plays no part: the case's ``verdict`` (:meth:`RateStudy.case_metrics`) adds it.
     """
     a = loop.analysis
     if a is None:
         raise TattotronixError(f"the rate study needs our controller's loop: backend="
                                f"{loop.backend} closes its own")
     predicted = "ok" if a["wnT"] < a["sampled_boundary_numeric_wnT"] else "fail"
+    # the loop's own verdict: ok is bounded and unsaturated, whatever the accuracy
+    simulated = "ok" if loop.run.verdict == "ok" else "fail"
     return {"wnT": a["wnT"], "boundary_wnT": a["sampled_boundary_wnT"],
             "boundary_numeric_wnT": a["sampled_boundary_numeric_wnT"],
             "lambda_max": a["modal_gain"][0], "substeps": loop.run.substeps,
-            "predicted": predicted, "verdict": loop.run.verdict,
-            "agrees": (loop.run.verdict == "ok") == (predicted == "ok")}
+            "predicted": predicted, "simulated": simulated, "agrees": simulated == predicted}
 
 
 class RateStudy(ClosedLoopStudy):
@@ -78,8 +86,12 @@ class RateStudy(ClosedLoopStudy):
 
     def case_metrics(self, cfg: Config, name: str,
                      windows: Mapping[str, Mapping[str, JsonValue]]) -> JsonDict:
-        # the first window's (the whole drawing)
-        return {"verdict_check": next(iter(windows.values()))["boundary"]}
+        """``verdict_check``: the first window's (the whole drawing) loop against the
+        boundary (:func:`rate_verdict_check`), and the run's verdict."""
+        first = next(iter(windows.values()))
+        check = first["boundary"]
+        assert isinstance(check, Mapping)
+        return {"verdict_check": {**check, "verdict": first["verdict"]}}
 
     def figure(self, cases: Cases, path: Path, title: str = "") -> None:
         """The rate x bandwidth grid coloured by verdict, and each run's wn T against the
@@ -95,9 +107,9 @@ class RateStudy(ClosedLoopStudy):
             verdict = c.text("verdict_check", "verdict")
             ax.add_patch(plt.Rectangle((j - 0.5, i - 0.5), 1, 1,
                                        color=VERDICT_COLOUR.get(verdict, "0.7"), alpha=0.75))
-            if verdict == "ok":
-                body = (f"settled {c.number('whole', 'settled_mean_um'):.2f} µm\n"
-                        f"worst {c.number('whole', 'marking_max_um'):.1f} µm\n"
+            if verdict in ("ok", "out-of-tolerance"):
+                body = (f"settled {_length(c.number('whole', 'settled_mean_um'))}\n"
+                        f"worst {_length(c.number('whole', 'marking_max_um'))}\n"
                         f"peak {c.number('whole', 'peak_torque_nm'):.3f} N m")
             else:
                 body = textwrap.fill(c.text("whole", "reason", "").split(" (")[0], 30)
@@ -146,11 +158,18 @@ class RateStudy(ClosedLoopStudy):
         finish_figure(fig, path, "Rate", title, "pid_g_v")
 
     def summary(self, cases: Cases) -> JsonDict:
-        """How many verdicts agree with the computed boundary, and how many are ok."""
+        """How many simulated loops agree with the computed boundary, how many held
+        (bounded and unsaturated: ``simulated_ok``), and how many runs are ok (held, and
+        within the drawing's tolerance)."""
         checks = [c.section("verdict_check") for c in cases.values()]
         return {"cases": len(cases), "agree": sum(bool(k["agrees"]) for k in checks),
+                "simulated_ok": sum(k.get("simulated") == "ok" for k in checks),
                 "ok": sum(k["verdict"] == "ok" for k in checks),
                 "boundary_wnT": checks[0]["boundary_wnT"]}
+
+
+def _length(um: float) -> str:
+    return length_text(um if um == um else None, "µm")  # NaN: a metric the run lacks
 
 
 #: the rate study

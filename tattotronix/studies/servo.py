@@ -16,7 +16,9 @@ Each case reports, over the whole drawing: the worst ink deviation (the symmetri
 Hausdorff distance of the simulated ink from the planned ink, mm), the mean and worst tip
 deviation while marking (mm), the line width (inked area over the planned marking length,
 mm; the planned ink's, the same way, is the reference: overlapping strokes make both
-narrower than the needle) and the cycle time. Stage ``servo`` (``stages/servo_study.py``);
+narrower than the needle), the cycle time, and the verdict against the drawing's tolerance
+(:mod:`tattotronix.control.verdict`; a run that saturated or diverged has no ink scores:
+null, with ``ink_reason``). Stage ``servo`` (``stages/servo_study.py``);
 the machinery is :class:`tattotronix.studies.base.ClosedLoopStudy`.
 """
 
@@ -24,6 +26,7 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,7 +35,16 @@ from tattotronix.control.drawing import ClosedLoop, score_ink
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.kinematics import Chain
 from tattotronix.plotting import pyplot
-from tattotronix.studies.base import Cases, ClosedLoopStudy, StudyCase, finish_figure
+from tattotronix.studies.base import (
+    VERDICT_COLOUR,
+    Cases,
+    ClosedLoopStudy,
+    StudyCase,
+    finish_figure,
+)
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
 
 __all__ = ["COMPENSATIONS", "IMPERFECTIONS", "STUDY", "ServoStudy"]
 
@@ -86,27 +98,32 @@ class ServoStudy(ClosedLoopStudy):
         return 1.0 / float(cfg.speed)
 
     def window_metrics(self, cfg: Config, loop: ClosedLoop, chain: Chain) -> JsonDict:
-        """The ink: its worst deviation from the plan's, the line width, the cycle time."""
+        """The ink: its worst deviation from the plan's, the line width, the cycle time (the
+        ink's scores null, with ``ink_reason``, where the run saturated or diverged)."""
         run = loop.run
         tip, _ = chain.fk(run.q)
         tip_ref, _ = chain.fk(run.ref.q[:len(run.q)])
         _, sim_ink, plan_ink, ink = score_ink(cfg, tip, tip_ref)
+        unscored = loop.judge(loop.errors(chain, float(cfg.draw.settle_periods))).unscored_ink()
+        if unscored:
+            ink = ink.unscored(unscored)
         res = float(cfg.draw.ink_res_mm)
         origin = np.asarray(cfg.toolpath.panel_origin, dtype=np.float64)
         below = (tip_ref[:, 2] - origin[2]) < 0.0
         seg = np.linalg.norm(np.diff(tip_ref[:, :2], axis=0), axis=1) * 1e3
         length = float(seg[below[1:] & below[:-1]].sum())
         px = res * res / length if length > 0 else math.nan
-        return {"ink_max_dev_mm": ink.max_dev_mm, "ink_iou": ink.iou,
-                "line_width_mm": float(sim_ink.sum()) * px,
+        return {"ink_max_dev_mm": ink.max_dev_mm, "ink_iou": ink.iou, "ink_reason": ink.reason,
+                "line_width_mm": None if unscored else float(sim_ink.sum()) * px,
                 "plan_line_width_mm": float(plan_ink.sum()) * px,
                 "marking_length_mm": length,
                 "cycle_s": float(loop.drawing.t[-1])}
 
     def figure(self, cases: Cases, path: Path, title: str = "") -> None:
         """Left: each case's worst ink deviation and mean marking deviation (mm), labelled
-        with its cycle time and line width. Right: each imperfection alone, on the
-        as-mounted servos."""
+        with its cycle time and line width (and its verdict, where the run saturated or
+        diverged and its ink has no score), against the drawing's tolerance. Right: each
+        imperfection alone, on the as-mounted servos."""
         plt = pyplot()
         table = [(name, c) for name, c in cases.items() if "-only-" not in name]
         fig, (ax, src) = plt.subplots(1, 2, figsize=(13, 0.9 + 0.42 * max(6, len(table))),
@@ -116,14 +133,23 @@ class ServoStudy(ClosedLoopStudy):
         mean = [c.number("whole", "marking_mean_um") / 1e3 for _, c in table]
         ax.barh(y - 0.2, worst, 0.4, color="#c0392b", label="worst ink deviation")
         ax.barh(y + 0.2, mean, 0.4, color="#3b6fb6", label="mean marking deviation")
+        unscored = False
         for k, (_, c) in enumerate(table):
-            ax.annotate(f"{c.number('whole', 'cycle_s'):.0f} s, line "
-                        f"{c.number('whole', 'line_width_mm'):.2f} mm",
-                        (max(worst[k], mean[k]), k), textcoords="offset points",
-                        xytext=(4, -3), fontsize=7.5, color="#444444")
+            verdict = c.text("whole", "verdict")
+            cycle = f"{c.number('whole', 'cycle_s'):.0f} s"
+            if verdict in ("ok", "out-of-tolerance"):  # the ink has scores
+                text, colour = f"{cycle}, line {c.number('whole', 'line_width_mm'):.2f} mm", \
+                    "#444444"
+            else:
+                text, colour = f"{verdict}: ink not scored; {cycle}", VERDICT_COLOUR.get(
+                    verdict, "k")
+                unscored = True
+            ax.annotate(text, (_largest(worst[k], mean[k]), k), textcoords="offset points",
+                        xytext=(4, -3), fontsize=7.5, color=colour)
+        _tolerance(ax, table)
         ax.set_yticks(y, [name for name, _ in table])
         ax.invert_yaxis()
-        ax.set_xlim(0, 1.3 * max([*worst, *mean, 1e-3]))
+        ax.set_xlim(0, (1.55 if unscored else 1.3) * _largest(*worst, *mean, 1e-3))
         ax.set_xlabel("mm over the whole drawing (labels: cycle time, line width)")
         ax.legend(loc="lower right", fontsize=8)
         ax.grid(True, axis="x", alpha=0.3)
@@ -134,6 +160,7 @@ class ServoStudy(ClosedLoopStudy):
         mean = [only[k].number("whole", "marking_mean_um") / 1e3 for k in names]
         src.barh(y - 0.2, worst, 0.4, color="#c0392b", label="worst ink deviation")
         src.barh(y + 0.2, mean, 0.4, color="#3b6fb6", label="mean marking deviation")
+        _tolerance(src, list(only.items()))
         src.set_yticks(y, [_SOURCE_LABEL[k] for k in names])
         src.invert_yaxis()
         src.set_xlabel("mm, the as-mounted servos with this imperfection alone")
@@ -163,13 +190,31 @@ _SOURCE_LABEL = {"quantise": "quantisation\n(PCA9685 counts)", "deadband": "dead
                  "lag": "lag (frame, latency,\nspeed, torque)"}
 
 
+def _largest(*values: float) -> float:
+    """The largest of ``values`` that is a number (0 where none is)."""
+    finite = [v for v in values if math.isfinite(v)]
+    return max(finite, default=0.0)
+
+
+def _tolerance(ax: Axes, cases: list[tuple[str, StudyCase]]) -> None:
+    """The drawing's marking tolerance, a dotted line (where the cases state it)."""
+    tol = {c.number("whole", "tolerance_um") for _, c in cases}
+    tol = {t for t in tol if math.isfinite(t)}
+    if len(tol) == 1:
+        t = tol.pop() / 1e3
+        ax.axvline(t, color="k", ls=":", lw=1)
+        ax.annotate(f" tolerance {t:g} mm", (t, 1.0), xycoords=("data", "axes fraction"),
+                    va="top", fontsize=7.5)
+
+
 def _colour(name: str) -> str:
     return {"built": "#3b6fb6", "sg90": "#e08a1e", "sts3215": "#2e8b57"}.get(
         name.split("-")[0], "#555555")
 
 
 def _row(c: StudyCase) -> JsonDict:
-    return {"worst_mm": _num(c.number("whole", "ink_max_dev_mm")),
+    return {"verdict": c.text("whole", "verdict"),
+            "worst_mm": _num(c.number("whole", "ink_max_dev_mm")),
             "mean_mm": _num(c.number("whole", "marking_mean_um") / 1e3),
             "marking_max_mm": _num(c.number("whole", "marking_max_um") / 1e3),
             "line_width_mm": _num(c.number("whole", "line_width_mm")),
