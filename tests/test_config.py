@@ -150,7 +150,7 @@ def test_dvc_repro_on_a_clean_clone(tmp_path: Path) -> None:
     their provenance, the figures, the animation) and every metrics file is byte for byte
     what another machine wrote at another commit, in another folder: no absolute path,
     time of day, commit or wall time reaches a file (those go to data/timings/), and
-    `dvc metrics diff data/metrics` shows nothing. The one DVC metric is the headline.
+    `dvc metrics diff --targets data/metrics` shows nothing. The one DVC metric is the headline.
     A second `dvc repro` does nothing; a new `controller.wn` in conf/ marks
     exactly its dependents changed; the README's `dvc exp run -S controller.wn=120` reruns
     only those, records certify's drift, `dvc metrics diff` shows the tracking change in
@@ -176,7 +176,7 @@ def test_dvc_repro_on_a_clean_clone(tmp_path: Path) -> None:
     # date without running
     assert run("git", "status", "--porcelain").stdout == "", run("git", "status").stdout
     # every metrics file, not only the headline (DVC's default): none moved
-    diff = run(*dvc, "metrics", "diff", "data/metrics", "data/certify.json")
+    diff = run(*dvc, "metrics", "diff", "--targets", "data/metrics", "data/certify.json")
     assert diff.returncode == 0 and diff.stdout.strip() == "", diff.stdout
     shown = json.loads(run(*dvc, "metrics", "show", "--json").stdout)
     (metrics,) = [rev["data"] for rev in shown.values()]
@@ -222,9 +222,9 @@ def test_dvc_repro_on_a_clean_clone(tmp_path: Path) -> None:
     diff = run(*dvc, "metrics", "diff")  # the headline: the study artwork's errors moved
     assert diff.returncode == 0
     assert "data/metrics/headline.json" in diff.stdout and "mean_um" in diff.stdout, diff.stdout
-    diff = run(*dvc, "metrics", "diff", "data/metrics/runs/emblem-mujoco.json")
+    diff = run(*dvc, "metrics", "diff", "--targets", "data/metrics/runs/emblem-mujoco.json")
     assert "settled_mean_um" in diff.stdout, diff.stdout  # a full metrics file, named
-    diff = run(*dvc, *shlex.split(_readme_command("dvc metrics diff data/metrics/headline"))[1:])
+    diff = run(*dvc, *shlex.split(_readme_command("dvc metrics diff --targets"))[1:])
     assert "lineart" in diff.stdout and "mean_um.json" in diff.stdout, diff.stdout
     # the README's `dvc exp show`: at its natural width (no terminal squeezes it) it fits
     # 120 columns, with the eight headline figures of the commit and of the experiment

@@ -167,7 +167,7 @@ def test_the_readme_exp_show_fits_120_columns(tmp_path: Path) -> None:
         "stages:\n"
         "  sim:\n"
         "    cmd: python headline.py\n"
-        "    deps: [headline.py, src]\n"
+        "    deps: [headline.py, src, params.yaml]\n"  # as the config stage's
         "    params: [controller]\n"
         "    outs:\n"
         "      - data/metrics/runs:\n"

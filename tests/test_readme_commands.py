@@ -138,14 +138,14 @@ COVERED: dict[str, tuple[str, ...]] = {
         "the same command on a clean clone after its `dvc repro`: only what depends on wn "
         "reruns, certify records the drift; tests/test_headline.py::"
         "test_the_readme_exp_show_fits_120_columns runs it in a small DVC project"),
-    "dvc exp show --only-changed --drop 'Created|State|Executor|data/' --keep "
+    "dvc exp show --only-changed --drop 'Created|State|Executor|params.yaml|data/' --keep "
     "'entries|time_s|cycle|max_um|mean_um|bleed|cover|servo_mm'": (
         TEST, "tests/test_config.py::test_dvc_repro_on_a_clean_clone",
         "the same command (read from the README) after the experiment on a clean clone: at "
         "most 120 columns, the headline of the commit and of the experiment; "
         "tests/test_headline.py::test_the_readme_exp_show_fits_120_columns runs it in a "
         "small DVC project with this project's params.yaml"),
-    "dvc metrics diff data/metrics/headline": (
+    "dvc metrics diff --targets data/metrics/headline": (
         TEST, "tests/test_config.py::test_dvc_repro_on_a_clean_clone",
         "the same command (read from the README) after the experiment on a clean clone: "
         "every drawing's settled mean moved"),

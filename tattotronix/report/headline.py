@@ -3,7 +3,8 @@
 
 DVC lists every key of every file declared as a metric, so the pipeline declares only
 these; the full metrics stay in their files under ``data/metrics/`` (git-tracked, read
-with ``dvc metrics show <file>``, ``dvc metrics diff data/metrics`` or as plain JSON).
+with ``dvc metrics show <file>``, ``dvc metrics diff --targets data/metrics`` or as plain
+JSON).
 
 Per drawing, in the order ``dvc exp show`` shows them (:data:`KEYS`):
 
@@ -35,8 +36,8 @@ The ``headline`` stage writes two views of the same numbers:
   the other drawings' would each need eight more columns.
 * ``data/metrics/headline/<key>.json``: one figure of every drawing (``{"emblem": ...,
   "lineart": ...}``), so ``dvc metrics show data/metrics/headline`` prints a figure per
-  row and a drawing per column, 80 columns wide, and ``dvc metrics diff
-  data/metrics/headline`` compares every drawing.
+  row and a drawing per column within 80 columns, and ``dvc metrics diff
+  --targets data/metrics/headline`` compares every drawing.
 """
 
 from __future__ import annotations
