@@ -3,16 +3,18 @@
 Reads README.md and docs/**/*.md from the project root (the current folder: DVC runs
 stages from there), the metrics files under ``<paths.data>/metrics`` and params.yaml, and
 the exemptions in docs/certify.yaml (see ``tattotronix.report.certify``). Writes
-``<paths.data>/certify.json`` (beside the metrics folder it reads, not in it; a DVC
-metric): the counts (documents, figures, traced, exempted, links, sources, failures).
+``<paths.data>/certify.json`` (beside the metrics folder it reads, not in it; git-tracked,
+not a DVC metric: ``dvc metrics show data/certify.json``): the counts (documents, figures,
+traced, exempted, links, sources, failures).
 
 On a branch, any failure (a figure that traces to no number, a reasonless exemption, a
 broken link, image or anchor) stops the stage with the list, exit code 2, and nothing
 written: ``main`` never carries a document that disagrees with its metrics. Inside a DVC
 experiment (``dvc exp run``, which sets ``DVC_EXP_BASELINE_REV``) an experiment exists to
 change the numbers, so the documents' drift is recorded instead: ``failures`` counts it
-and ``drift`` lists it in certify.json (``dvc exp show`` shows the count), the log says so,
-and the experiment is saved.
+and ``drift`` lists it in certify.json (``dvc metrics show data/certify.json``), the log
+says so in a few short lines (a count per document and the first figures), and the
+experiment is saved.
 
 A link to a file a stage produces (a figure under data/figures/) must exist: run this
 stage after the pipeline (``dvc repro`` orders it so).
@@ -42,11 +44,17 @@ def main(cfg: Config, out: Outputs) -> None:
         raise TattotronixError(report.format())
     summary = report.summary()
     if not report.ok:
+        # a few short lines: the whole list is certify.json's `drift`
         summary["drift"] = [str(f) for f in report.failures]
         log.warning("certify: inside a DVC experiment the documents' drift is recorded, "
-                    "not enforced: %s", report.format())
-    for note in report.notes:
-        log.info("certify: note: %s", note)
+                    "not enforced (the list: %s, drift):\n%s", out.path(OUTPUT_NAME),
+                    report.drift_summary())
+    if experiment and report.notes:
+        log.info("certify: %d note(s) on exemptions (run certify on the branch to list "
+                 "them)", len(report.notes))
+    else:
+        for note in report.notes:
+            log.info("certify: note: %s", note)
     out.write_json(out.path(OUTPUT_NAME), summary)
     log.info("certify: %d document(s), %d figure(s): %d traced, %d exempted; %d local "
              "link(s) (%d external, not checked); %d source numbers (%d ignored)",

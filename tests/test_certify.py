@@ -17,6 +17,7 @@ from tattotronix.report.certify import (
     EXPERIMENT_ENV,
     OUTPUT_NAME,
     CertifyReport,
+    Failure,
     certify,
     dvc_outputs,
     extract_figures,
@@ -502,3 +503,24 @@ def test_inside_an_experiment_the_drift_is_a_metric_not_a_failure(tmp_path: Path
     (bad / "data" / OUTPUT_NAME).unlink()
     assert _stage(bad, {EXPERIMENT_ENV: ""}).returncode == 2
     assert not (bad / "data" / OUTPUT_NAME).exists()
+
+
+def test_inside_an_experiment_the_log_is_a_short_summary() -> None:
+    """Dozens of drifted figures, each failure a long line: the experiment's log gets a
+    count per document and the first three, each line at most 100 characters (the whole
+    list is certify.json's ``drift``)."""
+    why = ("not traced: no number in data/metrics/**/*.json or params.yaml rounds to 18.7 "
+           "at 1 decimal(s) (closest: data/metrics/runs/emblem-mujoco.json marking_max_um "
+           "= 24.93); correct it, or exempt it with a reason in docs/certify.yaml")
+    failures = tuple(Failure("README.md" if i < 40 else "docs/control.md", i + 1,
+                             f"{i}.5 µm", why) for i in range(56))
+    report = CertifyReport(root=ROOT, documents=("README.md", "docs/control.md"), figures=(),
+                           traced=(), exempted=(), links=(), external_links=0, sources=0,
+                           sources_ignored=0, failures=failures)
+    lines = report.drift_summary().splitlines()
+    assert len(lines) == 5 and max(map(len, lines)) <= 100, lines
+    assert lines[0] == ("56 documented figure(s) or link(s) no longer match (README.md 40, "
+                        "docs/control.md 16)")
+    assert lines[1] == "  README.md:1: 0.5 µm: not traced"
+    assert lines[-1] == "  ... and 53 more"
+    assert len(report.format().splitlines()) == 57  # the whole list, outside an experiment

@@ -6,6 +6,7 @@ import csv
 import io
 import json
 import os
+import shlex
 import shutil
 import subprocess
 from pathlib import Path
@@ -23,12 +24,23 @@ from tattotronix.config.params import (
 )
 from tattotronix.config.schema import to_dict
 from tattotronix.errors import ConfigError
+from tattotronix.report.headline import KEYS as HEADLINE_KEYS
 
 from .conftest import PYTHON, ROOT
 
 ENV = {k: v for k, v in os.environ.items() if not k.startswith("DVC_")}
 # DVC runs `python stages/...`: make that the interpreter running the tests
 ENV["PATH"] = os.pathsep.join([str(Path(PYTHON).parent), ENV.get("PATH", "")])
+
+
+def _readme_command(prefix: str) -> str:
+    """The one README command that starts with ``prefix``: the tests run the README's own
+    words."""
+    from .test_readme_commands import README, commands
+
+    (command,) = [c for c in commands(README.read_text(encoding="utf-8"))
+                  if c.startswith(prefix)]
+    return command
 
 
 def _project_copy(tmp: Path) -> Path:
@@ -138,11 +150,14 @@ def test_dvc_repro_on_a_clean_clone(tmp_path: Path) -> None:
     their provenance, the figures, the animation) and every metrics file is byte for byte
     what another machine wrote at another commit, in another folder: no absolute path,
     time of day, commit or wall time reaches a file (those go to data/timings/), and
-    `dvc metrics diff` shows nothing. A second `dvc repro` does nothing; a new
-    `controller.wn` in conf/ marks
+    `dvc metrics diff --targets data/metrics` shows nothing. The one DVC metric is the headline.
+    A second `dvc repro` does nothing; a new `controller.wn` in conf/ marks
     exactly its dependents changed; the README's `dvc exp run -S controller.wn=120` reruns
-    only those, records certify's drift and `dvc metrics diff` shows the tracking change;
-    the `--queue` / `--run-all` form and `dvc exp show` work."""
+    only those, records certify's drift, `dvc metrics diff` shows the tracking change in
+    the headline (and in the full metrics when named), and the README's `dvc exp show`
+    fits 120 columns with the headline figures of the commit and the experiment;
+    `git checkout -- . && dvc checkout` puts the commit's workspace back; the
+    `--queue` / `--run-all` form leaves the workspace alone and `dvc exp show` lists both."""
     clone = tmp_path / "clone"
     subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True)
     # PYTHONPATH: the clone runs its own code, not the checkout the tests started from
@@ -160,8 +175,13 @@ def test_dvc_repro_on_a_clean_clone(tmp_path: Path) -> None:
     # and certify (whose inputs are the committed documents, metrics and figures) is up to
     # date without running
     assert run("git", "status", "--porcelain").stdout == "", run("git", "status").stdout
-    diff = run(*dvc, "metrics", "diff")
+    # every metrics file, not only the headline (DVC's default): none moved
+    diff = run(*dvc, "metrics", "diff", "--targets", "data/metrics", "data/certify.json")
     assert diff.returncode == 0 and diff.stdout.strip() == "", diff.stdout
+    shown = json.loads(run(*dvc, "metrics", "show", "--json").stdout)
+    (metrics,) = [rev["data"] for rev in shown.values()]
+    assert list(metrics) == ["data/metrics/headline.json"], list(metrics)
+    assert list(metrics["data/metrics/headline.json"]["data"]) == list(HEADLINE_KEYS)
     assert (clone / "data" / "timings" / "ik" / "emblem.json").is_file()  # the wall times
     assert ("Running stage 'certify'" in first.stdout
             or "Stage 'certify' didn't change" in first.stdout)
@@ -199,21 +219,46 @@ def test_dvc_repro_on_a_clean_clone(tmp_path: Path) -> None:
     assert "not enforced" in direct.stdout + direct.stderr  # certify: drift recorded
     drift = json.loads((clone / "data" / "certify.json").read_text())
     assert drift["failures"] > 0 and drift["drift"]
-    diff = run(*dvc, "metrics", "diff")
+    diff = run(*dvc, "metrics", "diff")  # the headline: the study artwork's errors moved
     assert diff.returncode == 0
-    assert "runs/emblem-mujoco.json" in diff.stdout and "settled_mean_um" in diff.stdout
-    assert run("git", "checkout", "--", ".").returncode == 0
-    run(*dvc, "checkout")
-    # (DVC's run cache holds the wn 120 stages from above, so they are restored, not rerun)
+    assert "data/metrics/headline.json" in diff.stdout and "mean_um" in diff.stdout, diff.stdout
+    diff = run(*dvc, "metrics", "diff", "--targets", "data/metrics/runs/emblem-mujoco.json")
+    assert "settled_mean_um" in diff.stdout, diff.stdout  # a full metrics file, named
+    diff = run(*dvc, *shlex.split(_readme_command("dvc metrics diff --targets"))[1:])
+    assert "lineart" in diff.stdout and "mean_um.json" in diff.stdout, diff.stdout
+    # the README's `dvc exp show`: at its natural width (no terminal squeezes it) it fits
+    # 120 columns, with the eight headline figures of the commit and of the experiment
+    exp_show = shlex.split(_readme_command("dvc exp show --only-changed"))
+    show = subprocess.run([PYTHON, "-m", *exp_show, "--no-pager"], cwd=clone,
+                          env={**env, "COLUMNS": "1000"}, capture_output=True, text=True)
+    assert show.returncode == 0, show.stderr
+    lines = [line.rstrip() for line in show.stdout.splitlines() if line.strip()]
+    assert max(map(len, lines)) <= 120, show.stdout
+    header = next(line for line in lines if "Experiment" in line).split()
+    assert header[1:] == [*HEADLINE_KEYS, "controller.wn"], header
+    table = [line.split() for line in lines
+             if line.split()[-1] in ("120", "120.0", "160", "160.0")]
+    assert {float(row[-1]) for row in table} == {120.0, 160.0}, show.stdout
+    assert all(len(row) >= len(HEADLINE_KEYS) + 2 for row in table), show.stdout
+    # the README's way back: the commit's tracked files, and DVC's outputs from the cache
+    back = run("bash", "-c", _readme_command("git checkout -- . && dvc checkout"))
+    assert back.returncode == 0, back.stdout + back.stderr
+    assert run("git", "status", "--porcelain").stdout == "", run("git", "status").stdout
+    assert "up to date" in run(*dvc, "status").stdout
+    # (DVC's run cache holds the wn 120 stages from above, so they are restored, not rerun;
+    # the README queues another value, which would run them)
     queued = run(*dvc, "exp", "run", "--queue", "-S", "controller.wn=120")
     assert queued.returncode == 0, queued.stdout + queued.stderr
     ran_all = run(*dvc, "exp", "run", "--run-all")
     assert ran_all.returncode == 0, ran_all.stdout[-3000:] + ran_all.stderr[-3000:]
+    assert run("git", "status", "--porcelain").stdout == ""  # ran aside
     show = run(*dvc, "exp", "show", "--no-pager", "--csv")
     assert show.returncode == 0, show.stderr
     rows = list(csv.DictReader(io.StringIO(show.stdout)))
     wn_cols = [c for c in rows[0] if c.endswith("controller.wn")]
     wn = [r for r in rows if any(r[c] in ("120", "120.0") for c in wn_cols)]
     assert len(wn) >= 2, show.stdout  # both experiments are listed
-    fail_cols = [c for c in rows[0] if c.endswith("failures")]
-    assert fail_cols and all(float(r[fail_cols[0]]) > 0 for r in wn), show.stdout
+    assert all(r["mean_um"] not in ("", "-") for r in wn), show.stdout  # with their headline
+    for r in wn:  # each saved its documents' drift (certify.json: git-tracked, no metric)
+        drift = json.loads(run("git", "show", f"{r['rev']}:data/certify.json").stdout)
+        assert drift["failures"] > 0 and drift["drift"], r["rev"]

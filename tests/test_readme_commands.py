@@ -124,11 +124,41 @@ COVERED: dict[str, tuple[str, ...]] = {
         "tests/test_studies.py::test_the_cluster_sweep_runs_through_submitit composes "
         "hydra/launcher=cluster and runs the same kind of sweep through submitit's local "
         "executor"),
-    "dvc exp run --queue -S controller.wn=120 && dvc exp run --run-all && dvc exp show": (
+    # --- metrics and experiments
+    "dvc metrics show": (
+        TEST, "tests/test_headline.py::test_dvc_metrics_show_lists_the_headline",
+        "`dvc metrics show --json` in the project: the one file is the headline; "
+        "tests/test_config.py::test_dvc_repro_on_a_clean_clone does the same on a clean "
+        "clone"),
+    "dvc metrics show data/metrics/headline": (
+        TEST, "tests/test_headline.py::test_dvc_metrics_show_lists_the_headline",
+        "the same command in the project: a figure per row, a drawing per column, at most "
+        "80 columns"),
+    "dvc exp run -S controller.wn=120": (
         TEST, "tests/test_config.py::test_dvc_repro_on_a_clean_clone",
-        "`dvc exp run -S controller.wn=120`, then the same with `--queue` and "
-        "`dvc exp run --run-all`, and `dvc exp show` listing both, on a clean clone after "
-        "its `dvc repro`"),
+        "the same command on a clean clone after its `dvc repro`: only what depends on wn "
+        "reruns, certify records the drift; tests/test_headline.py::"
+        "test_the_readme_exp_show_fits_120_columns runs it in a small DVC project"),
+    "dvc exp show --only-changed --drop 'Created|State|Executor|params.yaml|data/' --keep "
+    "'entries|time_s|cycle|max_um|mean_um|bleed|cover|servo_mm'": (
+        TEST, "tests/test_config.py::test_dvc_repro_on_a_clean_clone",
+        "the same command (read from the README) after the experiment on a clean clone: at "
+        "most 120 columns, the headline of the commit and of the experiment; "
+        "tests/test_headline.py::test_the_readme_exp_show_fits_120_columns runs it in a "
+        "small DVC project with this project's params.yaml"),
+    "dvc metrics diff --targets data/metrics/headline": (
+        TEST, "tests/test_config.py::test_dvc_repro_on_a_clean_clone",
+        "the same command (read from the README) after the experiment on a clean clone: "
+        "every drawing's settled mean moved"),
+    "git checkout -- . && dvc checkout": (
+        TEST, "tests/test_config.py::test_dvc_repro_on_a_clean_clone",
+        "the same command (read from the README) after the experiment on a clean clone; "
+        "then `git status` is clean and `dvc status` up to date"),
+    "dvc exp run --queue -S controller.wn=80 && dvc exp run --run-all": (
+        TEST, "tests/test_config.py::test_dvc_repro_on_a_clean_clone",
+        "the same with controller.wn=120 (DVC's run cache holds its stages from the direct "
+        "run, so none reruns), on a clean clone: the workspace stays clean and "
+        "`dvc exp show --csv` lists both experiments with their headline"),
     # --- CAD meshes
     "python stages/robot.py robot.cad_dir=../shared/cad/meshes": (
         TEST, "tests/test_readme_runs.py::test_the_cad_commands_run_on_the_meshes",

@@ -306,6 +306,28 @@ class CertifyReport:
         lines += [f"  {f}" for f in self.failures]
         return "\n".join(lines)
 
+    def drift_summary(self, examples: int = 3, width: int = 100) -> str:
+        """What no longer matches, for a person inside an experiment: a count per document
+        and the first few figures, each line at most ``width`` characters (the whole list
+        is :meth:`format`, and certify.json's ``drift``)."""
+        if self.ok:
+            return self.format()
+        per_doc: dict[str, int] = {}
+        for f in self.failures:
+            per_doc[f.document] = per_doc.get(f.document, 0) + 1
+        counts = ", ".join(f"{doc} {n}" for doc, n in per_doc.items())
+        lines = [_clip(f"{len(self.failures)} documented figure(s) or link(s) no longer "
+                       f"match ({counts})", width)]
+        lines += [_clip(f"  {f.document}:{f.line}: {f.text}: {f.why.split(':')[0]}", width)
+                  for f in self.failures[:examples]]
+        if len(self.failures) > examples:
+            lines.append(f"  ... and {len(self.failures) - examples} more")
+        return "\n".join(lines)
+
+
+def _clip(line: str, width: int) -> str:
+    return line if len(line) <= width else line[:width - 3] + "..."
+
 
 # --------------------------------------------------------------------------- masking
 

@@ -254,7 +254,8 @@ class ClosedLoopStudy(ABC):
         """The study's curve for ``dvc plots`` (``data/plots/studies/<study>.csv``): one row
         per case, in the order of its swept settings, with the case's name, its settings
         (by their last name: ``wn``, ``rate_hz``) and the whole drawing's worst and mean
-        marking error and cycle time."""
+        marking error and cycle time, and its verdict (the plot marks a case that is not
+        ``ok``)."""
         rows: list[dict[str, JsonValue]] = []
         for case, c in cases.items():
             row: dict[str, JsonValue] = {"case": case}
@@ -263,6 +264,7 @@ class ClosedLoopStudy(ABC):
             for key in ("marking_max_um", "marking_mean_um", "sim_s"):
                 value = c.number("whole", key)
                 row[key] = round(value, 3) if math.isfinite(value) else None
+            row["verdict"] = c.text("whole", "verdict", "")
             rows.append(row)
 
         def order(row: dict[str, JsonValue]) -> tuple[tuple[float, str], ...]:
