@@ -12,6 +12,10 @@ drawing.mp4 and drawing3d.mp4.
 
 from __future__ import annotations
 
+# first: a Ctrl-C while the libraries below import ends in one line (tattotronix/__init__.py)
+import tattotronix  # noqa: F401
+
+# isort: split
 import logging
 from pathlib import Path
 

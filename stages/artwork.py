@@ -10,6 +10,10 @@ stroked lines are also written, from its geometry, to ``data/artwork/<name>-line
 
 from __future__ import annotations
 
+# first: a Ctrl-C while the libraries below import ends in one line (tattotronix/__init__.py)
+import tattotronix  # noqa: F401
+
+# isort: split
 import logging
 
 from PIL import Image

@@ -15,6 +15,10 @@ axis) from ``cfg.ik``.
 
 from __future__ import annotations
 
+# first: a Ctrl-C while the libraries below import ends in one line (tattotronix/__init__.py)
+import tattotronix  # noqa: F401
+
+# isort: split
 import logging
 import time
 from typing import Any

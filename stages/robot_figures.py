@@ -8,6 +8,10 @@ data/figures/robot/mass.png (shell and servo mass per link, the link CoMs on the
 
 from __future__ import annotations
 
+# first: a Ctrl-C while the libraries below import ends in one line (tattotronix/__init__.py)
+import tattotronix  # noqa: F401
+
+# isort: split
 import json
 import logging
 

@@ -10,6 +10,10 @@ for ``dvc plots``, data/plots/<name>/studies/<study>.csv.
 
 from __future__ import annotations
 
+# first: a Ctrl-C while the libraries below import ends in one line (tattotronix/__init__.py)
+import tattotronix  # noqa: F401
+
+# isort: split
 import logging
 
 from omegaconf import DictConfig

@@ -23,7 +23,7 @@ from tattotronix.io.outputs import Outputs
 from tattotronix.path.figure import toolpath_figure
 from tattotronix.path.inkfigure import artwork_ink_figure
 from tattotronix.path.params import ToolpathParams
-from tattotronix.path.plan import plan_toolpath
+from tattotronix.path.plan import check_needle, plan_toolpath
 from tattotronix.stage import run_stage
 
 log = logging.getLogger("tattotronix.stages.toolpath")
@@ -36,6 +36,10 @@ def main(cfg: Config, out: Outputs) -> None:
     mask = stored.mask
     params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
     tp = plan_toolpath(mask, params, vector=stored.vector)
+    needle = float(cfg.toolpath.needle_width_mm)
+    ink = tp.ink(mask, needle, float(cfg.toolpath.ink_res_mm))
+    # a needle that cannot draw the artwork is refused before anything is written
+    check_needle(tp, mask, needle, float(cfg.toolpath.ink_res_mm), ink.fidelity)
 
     seq = tp.order.sequence
     ToolpathRecord(
@@ -52,7 +56,6 @@ def main(cfg: Config, out: Outputs) -> None:
     toolpath_figure(
         tp, params.panel_size_mm, out.tmp_path(out.path("figures", name, "toolpath.png")), name
     )
-    ink = tp.ink(mask, float(cfg.toolpath.needle_width_mm), float(cfg.toolpath.ink_res_mm))
     artwork_ink_figure(ink.art, ink.ink, ink.grid,
                        out.tmp_path(out.path("figures", name, "artwork_ink.png")),
                        f"{name}: the planned ink against the artwork (needle "

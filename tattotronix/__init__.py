@@ -20,9 +20,53 @@ at any depth (``lint-imports``, with the contracts in ``pyproject.toml``). Top t
 * ``config``: the Hydra config and its typed schema, read by every layer above.
 * ``io | plotting``: independent leaf utilities: output files and provenance, matplotlib helpers.
 * ``errors``: the exceptions every layer raises; imports nothing of the project.
+
+A stage script (``stages/<name>.py``) imports this package before any library (its first
+import), and while it imports the rest (seconds: NumPy, SciPy, Pinocchio, MuJoCo, ...) a
+Ctrl-C ends it at once with one line, ``<stage>: interrupted (Ctrl-C): stopped, nothing
+written``, and exit code 130, as during the run (``tattotronix.stage.run_stage``, which
+takes over), instead of a ``KeyboardInterrupt`` traceback from inside some import. Any
+other process that imports the package (a test, a notebook) keeps its own Ctrl-C.
 """
 
 from __future__ import annotations
 
+import signal
+import sys
+import threading
+from pathlib import Path
+from types import FrameType
+
 __version__ = "0.1.0"
+
+#: the folder a stage script lives in (``stages/`` beside this package, or a copy's)
+_STAGES = "stages"
+
+
+def _ctrl_c_while_importing(signum: int, frame: FrameType | None) -> None:
+    """SIGINT before the stage runs: nothing is written yet, so stop here, in one line."""
+    stage = Path(sys.argv[0]).stem if sys.argv and sys.argv[0] else "stage"
+    print(f"{stage}: interrupted (Ctrl-C): stopped, nothing written", file=sys.stderr)
+    raise SystemExit(128 + signum)
+
+
+def _is_stage_script() -> bool:
+    """Whether this process runs a stage script (``python stages/<name>.py``)."""
+    main = sys.modules.get("__main__")
+    file = getattr(main, "__file__", None)
+    if not isinstance(file, str) or getattr(main, "__name__", "") != "__main__":
+        return False
+    return Path(file).resolve().parent.name == _STAGES
+
+
+def end_import_guard() -> None:
+    """Ctrl-C raises ``KeyboardInterrupt`` again (the stage runner cleans up after it)."""
+    if (threading.current_thread() is threading.main_thread()
+            and signal.getsignal(signal.SIGINT) is _ctrl_c_while_importing):
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
+if (threading.current_thread() is threading.main_thread() and _is_stage_script()
+        and signal.getsignal(signal.SIGINT) is signal.default_int_handler):
+    signal.signal(signal.SIGINT, _ctrl_c_while_importing)
 

@@ -3,14 +3,14 @@ layer can raise them without pulling in another.
 
 Every one is an error the user can act on: the message says what, which value or file,
 and what to do. The stage runner (``tattotronix.stage``) prints it as one line and exits
-with code 2.
+with code 2; an :class:`Interrupted` run, with 128 + the signal's number (130 for Ctrl-C).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-__all__ = ["ConfigError", "StageInputMissing", "TattotronixError"]
+__all__ = ["ConfigError", "Interrupted", "StageInputMissing", "TattotronixError"]
 
 
 class TattotronixError(Exception):
@@ -29,3 +29,17 @@ class StageInputMissing(TattotronixError):
             f"missing input {path}: run the '{stage}' stage first "
             f"(python stages/{stage}.py, or dvc repro)"
         )
+
+
+class Interrupted(TattotronixError):
+    """The run stopped safely on a stop signal (Ctrl-C, SIGTERM, SIGHUP); the message says
+    where it stopped and how to go on. The stage runner prints ``<stage>: interrupted:
+    <message>`` and exits with 128 + ``signum`` (130 for Ctrl-C), as for any interrupt.
+
+    Attributes:
+        signum: the (first) signal that asked for the stop.
+    """
+
+    def __init__(self, message: str, signum: int):
+        super().__init__(message)
+        self.signum = int(signum)

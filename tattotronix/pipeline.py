@@ -23,7 +23,7 @@ from tattotronix.art.vector import artwork_lines
 from tattotronix.config.schema import Config, IkConfig
 from tattotronix.kinematics import Chain, IkOptions, IkResult, solve_path
 from tattotronix.path.params import ToolpathParams
-from tattotronix.path.plan import plan_toolpath
+from tattotronix.path.plan import check_needle, plan_toolpath
 from tattotronix.robot.description import RobotDescription
 from tattotronix.trajectory import JointLimits, JointPath, Trajectory, TrajectoryParams
 from tattotronix.trajectory import plan_trajectory as _plan_trajectory
@@ -121,8 +121,9 @@ def plan_drawing(cfg: Config, source: str | Path | None, name: str,
     mask = mask_of(cfg, source, name)
     vector = (artwork_lines(source, mask.ink.shape, mask.res_mm, cfg.toolpath.step_mm)
               if cfg.artwork.vector else None)
-    tp = plan_toolpath(mask, ToolpathParams.from_config(cfg.toolpath, cfg.mask,
-                                                        cfg.robot.panel), vector=vector)
+    params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
+    tp = plan_toolpath(mask, params, vector=vector)
+    check_needle(tp, mask, params.needle_width_mm, cfg.toolpath.ink_res_mm)
     chain = Chain.from_description(desc)
     res = solve_ik(chain, tp.xyz_m, tp.path.uvz_mm, cfg.ik)
     tcp, _ = chain.fk(res.q)

@@ -24,12 +24,19 @@ A stage script is thin::
   one-line message and exit code 2; no traceback, and no partial output. So does a bad
   command line (an override Hydra cannot parse, an unknown key, a value of the wrong type
   or out of its range), and running out of memory.
-* Ctrl-C (``KeyboardInterrupt``) ends it with one line and exit code 130; the outputs
-  staged so far are removed (:meth:`Outputs.transaction`).
+* A stop signal ends it with one line and exit code 128 + the signal's number, as a shell
+  reports it: Ctrl-C (SIGINT) 130, SIGTERM (``kill``, a service manager) 143, SIGHUP (a
+  closed terminal) 129; the outputs staged so far are removed
+  (:meth:`Outputs.transaction`). A run that stops itself safely on a signal (the arm lifts
+  the needle and saves where it stopped) raises :class:`~tattotronix.errors.Interrupted`,
+  whose message says so, and ends the same way. A Ctrl-C while the stage script is still
+  importing its libraries (before :func:`run_stage`) also ends in one line with 130
+  (``tattotronix/__init__.py``).
 * Inputs are read under ``paths.data``; outputs go where
   :func:`~tattotronix.io.outputs.write_root` says (``paths.data`` under DVC, ``runs/``
   for a run by hand on the pipeline's data, or ``paths.out``), and the run ends with one
-  line naming what it wrote. The jobs of a ``-m`` sweep run without progress bars.
+  line naming what it wrote. The jobs of a ``-m`` sweep run without progress bars,
+  each writing under a folder of its own (:class:`~tattotronix.io.outputs.Outputs`).
 """
 
 from __future__ import annotations
@@ -37,18 +44,23 @@ from __future__ import annotations
 import dataclasses
 import logging
 import os
+import signal
 import sys
+import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from types import FrameType
 
 from omegaconf import DictConfig, OmegaConf
 
+from tattotronix import end_import_guard
 from tattotronix.config.dvclock import guard as guard_lock
 from tattotronix.config.params import load_params, one_line, to_settings
 from tattotronix.config.schema import Config
 from tattotronix.config.tracked import override_keys, stage_names, tracked_params
-from tattotronix.errors import ConfigError, TattotronixError
+from tattotronix.errors import ConfigError, Interrupted, TattotronixError
 from tattotronix.io.outputs import Outputs, write_root
 from tattotronix.io.provenance import (
     fixed_code_version,
@@ -57,15 +69,19 @@ from tattotronix.io.provenance import (
     stamp_version,
 )
 
-__all__ = ["StageBody", "logs_to_stderr", "run_stage"]
+__all__ = ["StageBody", "StopSignal", "exit_code", "logs_to_stderr", "run_stage", "signal_name",
+           "stop_signals"]
 
 #: a stage's body: ``main(cfg, out)`` of ``stages/<name>.py``
 StageBody = Callable[[Config, Outputs], None]
 
 log = logging.getLogger("tattotronix")
 
-#: the exit code of a run stopped by Ctrl-C (128 + SIGINT, as a shell reports it)
+#: the exit code of a run stopped by Ctrl-C (128 + SIGINT, as a shell reports it); any stop
+#: signal exits with 128 + its number (:func:`exit_code`: SIGTERM 143, SIGHUP 129)
 EXIT_INTERRUPTED = 130
+#: the signals that stop a stage as Ctrl-C does (SIGINT itself raises KeyboardInterrupt)
+_STOP_SIGNALS = ("SIGTERM", "SIGHUP")
 #: the exit code of a refused run (bad input, bad configuration)
 EXIT_REFUSED = 2
 
@@ -90,6 +106,66 @@ def _setup_logging() -> None:
     log.setLevel(logging.INFO)
 
 
+def exit_code(signum: int) -> int:
+    """The exit code of a run stopped by signal ``signum``: 128 + its number, as a shell
+    reports a process the signal ended (130 for Ctrl-C, 143 for SIGTERM)."""
+    return 128 + int(signum)
+
+
+def signal_name(signum: int) -> str:
+    """``Ctrl-C`` for SIGINT, else the signal's name (``SIGTERM``)."""
+    return "Ctrl-C" if signum == signal.SIGINT else signal.Signals(signum).name
+
+
+class StopSignal(KeyboardInterrupt):
+    """SIGTERM or SIGHUP, raised where the stage was, as Ctrl-C raises KeyboardInterrupt:
+    whatever cleans up after a Ctrl-C (the outputs' transaction, a pool of workers) cleans
+    up after these too."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal_name(signum))
+        self.signum = int(signum)
+
+
+@contextmanager
+def stop_signals() -> Iterator[None]:
+    """SIGTERM and SIGHUP raise :class:`StopSignal` inside the block (main thread only;
+    an ignored one stays ignored, as under ``nohup``); the previous handlers after it.
+
+    A process forked inside the block (a study's workers) inherits the handler; there it
+    does what the signal would have done (the parent's pool ends its workers with SIGTERM).
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    owner = os.getpid()
+
+    def _raise(signum: int, frame: FrameType | None) -> None:
+        if os.getpid() != owner:  # a forked worker: the signal's default action
+            signal.signal(signum, signal.SIG_DFL)
+            os.kill(os.getpid(), signum)
+            return
+        raise StopSignal(signum)
+
+    previous: dict[int, signal.Handlers | int | Callable[..., object] | None] = {}
+    for sig_name in _STOP_SIGNALS:
+        sig = getattr(signal, sig_name, None)
+        if sig is None or signal.getsignal(sig) == signal.SIG_IGN:
+            continue
+        previous[sig] = signal.getsignal(sig)
+        signal.signal(sig, _raise)
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, signal.SIG_DFL if handler is None else handler)
+
+
+def _interrupted(name: str, signum: int, message: str) -> SystemExit:
+    print(f"{name}: {message}", file=sys.stderr)
+    return SystemExit(exit_code(signum))
+
+
 def _execute(name: str, body: StageBody, cfg: DictConfig,
              sweep_overrides: list[str] | None = None) -> None:
     _setup_logging()
@@ -108,6 +184,8 @@ def _execute(name: str, body: StageBody, cfg: DictConfig,
     try:
         with out.transaction():
             body(settings, out)
+    except Interrupted as exc:  # stopped safely on a signal; the message says how it ended
+        raise _interrupted(name, exc.signum, f"interrupted: {exc}") from None
     except (TattotronixError, ConfigError) as exc:
         raise _refuse(name, str(exc)) from None
     except MemoryError as exc:  # numpy's ArrayMemoryError says how much it wanted
@@ -132,11 +210,16 @@ def _validated(cfg: DictConfig) -> DictConfig:
 
 def run_stage(name: str, body: StageBody) -> None:
     """Run a stage body with its config. See the module docstring."""
+    # Ctrl-C raises KeyboardInterrupt again (tattotronix/__init__.py ended the process at
+    # once while the script imported: there was nothing to clean up yet)
+    end_import_guard()
     try:
-        _run(name, body)
-    except KeyboardInterrupt:
-        print(f"{name}: interrupted (Ctrl-C): stopped, nothing written", file=sys.stderr)
-        raise SystemExit(EXIT_INTERRUPTED) from None
+        with stop_signals():
+            _run(name, body)
+    except KeyboardInterrupt as exc:
+        signum = exc.signum if isinstance(exc, StopSignal) else signal.SIGINT
+        raise _interrupted(name, signum, f"interrupted ({signal_name(signum)}): stopped, "
+                           "nothing written") from None
 
 
 def _parse_hint(exc: BaseException) -> str:

@@ -108,7 +108,7 @@ def test_ramp_peaks_at_the_ramp_speed() -> None:
 def test_state_file_problems_are_named(tmp_path: Path) -> None:
     bad = tmp_path / "state.json"
     bad.write_text("{not json")
-    with pytest.raises(TattotronixError, match="state.json is unreadable"):
+    with pytest.raises(TattotronixError, match="state.json: unreadable"):
         ArmState.load(bad, 5)
     bad.write_text(json.dumps({"q": [0.0, 0.1]}))
     with pytest.raises(TattotronixError, match="5 finite angles"):
@@ -220,8 +220,10 @@ def _assert_stopped_safely(data: Path, r: subprocess.CompletedProcess[str], geo:
                            signame: str) -> None:
     """A stop signal: the needle ends at or above the clearance height in the last pose
     sent (forward kinematics of the logged angles), every output off after it, the state
-    paused at the next frame to draw, and a message that says all of it truthfully."""
-    assert r.returncode == 2, r.stderr
+    paused at the next frame to draw, and a message that says all of it truthfully, in
+    one line, with the exit code of an interrupt (128 + the signal: 130 for Ctrl-C)."""
+    assert r.returncode == 128 + signal.Signals[signame], r.stderr
+    assert r.stderr.strip().splitlines()[-1].startswith(f"draw: interrupted: {signame} ")
     assert "Traceback" not in r.stderr and "resume=true" in r.stderr
     state = _state(data)
     assert state["status"] == "paused"
@@ -230,7 +232,7 @@ def _assert_stopped_safely(data: Path, r: subprocess.CompletedProcess[str], geo:
     assert z >= geo.clearance - 1e-5
     assert _transcript(data, state["session"])[-1] == ALL_OFF
     err = " ".join(r.stderr.split())
-    assert f"error: {signame} " in err
+    assert f"interrupted: {signame} " in err
     assert f"the last pose sent has the needle tip at {z * 1e3:.2f} mm" in err
     assert "every output is off" in err
     moving = [p for p in poses if p["phase"] != "lift"]

@@ -285,9 +285,17 @@ def load_params(overrides: Sequence[str] = (), root: Path = PROJECT_ROOT) -> Dic
     return _compose_params(overrides, root)
 
 
+#: the name ``params.yaml`` is composed under (a node of Hydra's ConfigStore)
+_PARAMS_NODE = "_tattotronix_params"
+
+
 def _compose_params(overrides: Sequence[str], root: Path) -> DictConfig:
+    """``params.yaml`` plus ``overrides`` (Hydra's grammar), as a node of Hydra's
+    ConfigStore: no folder is on the search path, so no folder of the project (an ``art/``
+    beside ``params.yaml``, named like a key) can pass for a config group."""
     from hydra import compose as hydra_compose
-    from hydra import initialize_config_dir
+    from hydra import initialize
+    from hydra.core.config_store import ConfigStore
     from hydra.core.global_hydra import GlobalHydra
 
     from tattotronix.config.schema import Config
@@ -295,8 +303,10 @@ def _compose_params(overrides: Sequence[str], root: Path) -> DictConfig:
     if GlobalHydra.instance().is_initialized():
         GlobalHydra.instance().clear()
     try:
-        with initialize_config_dir(str(root.resolve()), version_base="1.3"):
-            raw = hydra_compose(config_name=Path(PARAMS_FILE).stem, overrides=list(overrides))
+        stored = OmegaConf.load(root / PARAMS_FILE)
+        ConfigStore.instance().store(name=_PARAMS_NODE, node=stored)
+        with initialize(config_path=None, version_base="1.3"):
+            raw = hydra_compose(config_name=_PARAMS_NODE, overrides=list(overrides))
         schema = OmegaConf.structured(Config)
         cfg = OmegaConf.merge(schema, OmegaConf.to_container(raw, resolve=True))
     except Exception as exc:

@@ -54,7 +54,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from types import FrameType
 from typing import IO
@@ -63,7 +63,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.config.schema import Config, HardwareConfig
-from tattotronix.errors import TattotronixError
+from tattotronix.errors import Interrupted, TattotronixError
 from tattotronix.hardware.pca9685 import PCA9685, BusError, RecordingBus, SMBusLike, open_bus
 from tattotronix.hardware.preview import preview_of
 from tattotronix.hardware.program import ServoProgram
@@ -95,8 +95,10 @@ _HOOK_WAIT_S = 60.0
 _Handler = Callable[[int, FrameType | None], object] | int | signal.Handlers | None
 
 
-class Paused(TattotronixError):
-    """The drawing stopped on request (a stop signal); the message says how to resume."""
+class Paused(Interrupted):
+    """The drawing stopped on request (a stop signal: its ``signum``), after the lift and
+    all-off; the message says how to resume. The stage exits with 128 + ``signum`` (130
+    for Ctrl-C, a double one included)."""
 
 
 def calibration_from_config(hw: HardwareConfig, joint_names: tuple[str, ...]) -> Calibration:
@@ -138,21 +140,27 @@ class ArmState:
     def load(cls, path: Path, n: int) -> ArmState | None:
         """Read the state file; None if there is none.
 
+        Every field is checked (:func:`_state_problem`): a frame that is not a whole
+        number within the program (``0 <= drawn``, ``frame <= frames``), a session that is
+        not a whole number, an unknown status, a pose that is not ``n`` finite angles. A
+        resume from a wrong frame would ink again what is drawn (or skip what is not), and
+        ink cannot be undone: such a file is refused, never repaired.
+
         Raises:
-            TattotronixError: the file is unreadable or malformed (it names the file).
+            TattotronixError: the file is unreadable or malformed (it names the file and
+                the field).
         """
         if not path.exists():
             return None
         try:
             raw = json.loads(path.read_text())
-            state = cls(**raw)
-            if len(state.q) != n or not all(np.isfinite(state.q)):
-                raise ValueError(f"q must be {n} finite angles")
-        except (OSError, ValueError, TypeError) as exc:
-            raise TattotronixError(
-                f"arm state file {path} is unreadable ({exc}): if the arm is at its zero "
-                "pose, delete the file; otherwise fix it, since the arm would jump") from None
-        return state
+        except (OSError, ValueError) as exc:
+            raise _bad_state(path, f"unreadable ({one_line_of(exc)})") from None
+        problem = _state_problem(raw, n)
+        if problem:
+            raise _bad_state(path, problem)
+        assert isinstance(raw, dict)
+        return cls(**raw)
 
     def save(self, path: Path) -> None:
         """Write atomically and durably: a crash or a power cut leaves the old file or the
@@ -166,6 +174,68 @@ class ArmState:
             os.fsync(fh.fileno())
         tmp.replace(path)
         _fsync_dir(path.parent)
+
+
+#: what ``status`` may say
+_STATUSES = ("idle", "drawing", "paused", "failed", "done")
+
+
+def one_line_of(exc: BaseException) -> str:
+    """An exception's message on one line."""
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def _bad_state(path: Path, problem: str) -> TattotronixError:
+    return TattotronixError(
+        f"arm state file {path}: {problem}. Nothing was sent. Ink cannot be undone, so a "
+        "bad state is never guessed at: if the arm rests at its zero pose and nothing of "
+        "this drawing is drawn, delete the file; otherwise restore it (its frame is the next "
+        "one to draw), or check the last session's poses.jsonl")
+
+
+def _is_int(v: object) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _state_problem(raw: object, n: int) -> str:
+    """What is wrong with a state file's content (naming the field), or ""."""
+    if not isinstance(raw, dict):
+        return f"not a JSON object (got {type(raw).__name__})"
+    known = [f.name for f in fields(ArmState)]
+    unknown = sorted(str(k) for k in raw if k not in known)
+    if unknown:
+        return (f"unknown field {', '.join(repr(k) for k in unknown)} (the fields: "
+                f"{', '.join(known)})")
+    if "q" not in raw:
+        return "field 'q' (the last commanded pose) is missing"
+    q = raw["q"]
+    if (not isinstance(q, list) or len(q) != n
+            or not all(isinstance(v, int | float) and not isinstance(v, bool)
+                       and math.isfinite(v) for v in q)):
+        return f"field 'q' must be {n} finite angles in rad (got {q!r})"
+    for name in ("drawing", "program"):
+        if raw.get(name) is not None and not isinstance(raw[name], str):
+            return f"field {name!r} must be a string or null (got {raw[name]!r})"
+    for name in ("status", "reason"):
+        if name in raw and not isinstance(raw[name], str):
+            return f"field {name!r} must be a string (got {raw[name]!r})"
+    if raw.get("status", "idle") not in _STATUSES:
+        return f"field 'status' must be one of {', '.join(_STATUSES)} (got {raw['status']!r})"
+    saved = raw.get("saved_at", 0.0)
+    if not (isinstance(saved, int | float) and not isinstance(saved, bool)
+            and math.isfinite(saved)):
+        return f"field 'saved_at' must be a time in seconds (got {saved!r})"
+    for name in ("frames", "session"):
+        v = raw.get(name, 0)
+        if not (_is_int(v) and v >= 0):
+            return f"field {name!r} must be a whole number >= 0 (got {v!r})"
+    frames = raw.get("frames", 0)
+    for name in ("frame", "drawn"):
+        v = raw.get(name, 0)
+        if not (_is_int(v) and 0 <= v <= frames):
+            return (f"field {name!r} must be a whole number of frames from 0 to the "
+                    f"program's {frames} ('frames') (got {v!r})")
+    return ""
 
 
 def _fsync_dir(folder: Path) -> None:
@@ -311,8 +381,8 @@ def _pose_record(raw: bytes, n: int) -> tuple[int, str, int | None, tuple[float,
         q = tuple(float(v) for v in rec["q"])
     except (ValueError, KeyError, TypeError):
         return None
-    if not (isinstance(session, int) and isinstance(phase, str)
-            and (frame is None or isinstance(frame, int))
+    if not (_is_int(session) and isinstance(phase, str)
+            and (frame is None or (_is_int(frame) and frame >= 0))
             and len(q) == n and all(math.isfinite(v) for v in q)):
         return None
     return session, phase, frame, q
@@ -604,8 +674,17 @@ class ArmSession:
                 f"the program of '{self.name}' changed since it stopped at frame "
                 f"{state.frame} (trajectory, calibration or settings): resuming would "
                 "draw a different picture; start again without resume=true")
+        if state.frames != self.program.frames:
+            raise _bad_state(self.state_file, (
+                f"field 'frames' is {state.frames}, but the program of '{self.name}' it "
+                f"names (program {digest}) has {self.program.frames} frames"))
         if not crashed:
             return _Start(state.frame, q, max(state.drawn, state.frame), crashed=False)
+        if tail.drawn > self.program.frames:
+            raise TattotronixError(
+                f"{self._poses_of(self.name)} says frame {tail.drawn - 1} was drawn, past the "
+                f"program's {self.program.frames} frames: not the log of this drawing; "
+                "nothing was sent (restore the log, or start again without resume=true)")
         known = max(state.drawn, state.frame, tail.drawn)
         margin = int(round(RESUME_MARGIN_S * self.program.frame_hz))
         return _Start(max(0, known - margin), q, known, crashed=True)
@@ -784,7 +863,7 @@ class ArmSession:
             "channel_writes": stream.writes if stream else 0,
             "session": session_no, "wall_s": wall, "program": digest}
         if status == "paused":
-            raise Paused(f"{state.reason}. Continue with resume=true")
+            raise Paused(f"{state.reason}. Continue with resume=true", stop.signals[0])
         if status == "failed":
             raise TattotronixError(
                 f"{state.reason}. The state is saved in {self.state_file}: fix the cause, "

@@ -456,6 +456,51 @@ class TrajectoryRecord(_Record):
     tcp: Float
     provenance: Mapping[str, JsonValue] = field(default_factory=dict)
 
+    @classmethod
+    def load(cls, file: str | Path) -> TrajectoryRecord:
+        """Read the trajectory, refusing one no arm could follow (:meth:`problem`): every
+        reader (the collision check, deploy, the simulations, the arm and its preview)
+        loads it here.
+
+        Raises:
+            TattotronixError: the file is unreadable, or holds an impossible trajectory;
+                the message names the file, what is wrong and the 'trajectory' stage.
+        """
+        arrays, prov = cls.SPEC.read(file)
+        rec = cls._build(arrays, prov)
+        problem = rec.problem()
+        if problem:
+            raise cls.SPEC.refuse(file, problem)
+        return rec
+
+    def problem(self) -> str:
+        """What makes the trajectory impossible, or "": times that are not finite and
+        strictly increasing, angles, rates or tip positions that are not finite numbers,
+        or arrays whose lengths disagree."""
+        t = self.t
+        if t.ndim != 1 or len(t) < 1:
+            return f"time 't' must be a list of samples (got shape {t.shape})"
+        n_t, n_j = len(t), len(self.joints)
+        shapes = {"q": (n_t, n_j), "qd": (n_t, n_j), "qdd": (n_t, n_j), "kind": (n_t,),
+                  "marked": (n_t,), "tcp": (n_t, 3)}
+        for key, shape in shapes.items():
+            have = np.shape(getattr(self, key))
+            if have != shape:
+                return (f"'{key}' has shape {have}, not {shape} ({n_t} samples of 't', "
+                        f"{n_j} joints)")
+        for key in ("t", "q", "qd", "qdd", "tcp"):
+            bad = np.flatnonzero(~np.isfinite(np.asarray(getattr(self, key))).reshape(n_t, -1)
+                                 .all(axis=1))
+            if len(bad):
+                return (f"'{key}' is not finite (NaN or inf) at {len(bad)} sample(s), the "
+                        f"first at sample {bad[0]} (t = {t[bad[0]]:g} s)")
+        back = np.flatnonzero(np.diff(t) <= 0)
+        if len(back):
+            i = int(back[0])
+            return (f"time 't' is not strictly increasing: sample {i + 1} is at "
+                    f"{t[i + 1]:.9g} s, after {t[i]:.9g} s ({len(back)} such step(s))")
+        return ""
+
 
 @dataclass(frozen=True)
 class RunLogRecord(_Record):

@@ -4,10 +4,16 @@ Where a run writes is not always where it reads. Every run reads its inputs unde
 ``paths.data``; ``dvc repro`` writes there too, but a run by hand (``python stages/...``,
 a ``-m`` sweep, a notebook) whose ``paths.data`` is the pipeline's own folder writes under
 ``runs/`` beside it instead, so it never changes what DVC tracks (:func:`write_root`).
+
+The jobs of a ``-m`` sweep run side by side with the same outputs in mind, so each job
+writes under a folder of its own, ``sweeps/<its overrides>/`` under that root
+(``runs/sweeps/toolpath.pitch_mm=1.0/toolpath/emblem.npz``), unless the stage names each
+job's files itself (:meth:`Outputs.sweep_suffix`: ``draw.py`` and the studies' cases).
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import logging
 import math
@@ -19,7 +25,8 @@ from pathlib import Path
 
 from tattotronix.errors import StageInputMissing
 
-__all__ = ["HAND_RUNS", "PIPELINE_DATA", "PROJECT_ROOT", "Outputs", "override_key", "write_root"]
+__all__ = ["HAND_RUNS", "PIPELINE_DATA", "PROJECT_ROOT", "SWEEP_JOBS", "Outputs", "override_key",
+           "write_root"]
 
 log = logging.getLogger("tattotronix")
 
@@ -29,6 +36,11 @@ PROJECT_ROOT = Path(__file__).resolve().parents[2]
 PIPELINE_DATA = "data"
 #: where a run by hand writes instead, beside the pipeline's data folder (git-ignored)
 HAND_RUNS = "runs"
+#: the folder, under where a run writes, that holds a folder per job of a ``-m`` sweep
+SWEEP_JOBS = "sweeps"
+#: the longest job folder name (a file name has at most 255 bytes); longer ones are cut and
+#: end in a hash of the whole
+_MAX_JOB_NAME = 120
 
 
 #: overrides that say where outputs go, not what they are: never part of a name
@@ -68,7 +80,9 @@ class Outputs:
 
     ``data`` is where the run reads (``paths.data``); ``root`` is where it writes
     (:func:`write_root`). :meth:`path` and the writers are under ``root``; read inputs
-    under ``data``.
+    under ``data``. A job of a ``-m`` sweep (``sweep_overrides`` given) writes under a
+    folder of its own instead, ``<root>/sweeps/<its overrides>/``, unless its stage names
+    the job's files itself (:meth:`sweep_suffix`).
 
     Files go to temporary names next to their targets; only when the stage body returns
     are they renamed into place. A stage interrupted half-way leaves nothing that looks
@@ -79,26 +93,50 @@ class Outputs:
                  root: str | Path | None = None):
         #: where the run reads its inputs (``paths.data``)
         self.data = Path(data)
-        #: where the run writes (``root`` if given, else :func:`write_root` of ``data``)
-        self.root = Path(root) if root is not None else write_root(self.data)
-        #: every file the last commit put in place, in order
-        self.written: list[Path] = []
+        #: where runs write (``root`` if given, else :func:`write_root` of ``data``)
+        self.shared_root = Path(root) if root is not None else write_root(self.data)
         #: in a Hydra multirun, this job's overrides (``key=value``); None otherwise
         self.sweep_overrides = sweep_overrides
+        job = self._job_name()
+        #: where this run writes: :attr:`shared_root`, or a sweep job's own folder in it
+        self.root = self.shared_root / SWEEP_JOBS / job if job else self.shared_root
+        #: every file the last commit put in place, in order
+        self.written: list[Path] = []
         self._pending: list[tuple[Path, Path]] = []
         self._removals: list[Path] = []  # files that go at the commit
         self._made: list[Path] = []  # folders made for the temporaries, outermost first
 
+    def _overrides_named(self, ignore: tuple[str, ...] = ()) -> list[str]:
+        """This job's overrides that tell it from the other jobs (``/`` made ``_``), sorted:
+        not where it writes, not Hydra's own, not the keys in ``ignore``."""
+        skip = (*ignore, *_WHERE_KEYS)
+        return sorted(o.replace("/", "_") for o in self.sweep_overrides or ()
+                      if override_key(o) not in skip and not o.startswith("hydra"))
+
+    def _job_name(self) -> str:
+        """The folder of this sweep job (``toolpath.pitch_mm=1.0``); "" outside a sweep."""
+        name = ",".join(self._overrides_named())
+        if len(name) > _MAX_JOB_NAME:
+            digest = hashlib.sha256(name.encode()).hexdigest()[:12]
+            name = f"{name[:_MAX_JOB_NAME - 13]}~{digest}"
+        return name
+
     def sweep_suffix(self, ignore: tuple[str, ...] = ()) -> str:
         """In a multirun, ``@k=v,k=v`` from this job's overrides (keys in ``ignore`` left
-        out), so that the jobs of a sweep never write the same file; "" otherwise."""
+        out), so that the jobs of a sweep never write the same file; "" otherwise.
+
+        A stage that calls this names each job's files itself (with the suffix, and the
+        ignored keys in its names), so from then on the job writes under
+        :attr:`shared_root`, beside the other jobs, not under a folder of its own. Call it
+        before staging any file.
+        """
         if not self.sweep_overrides:
             return ""
-        skip = (*ignore, *_WHERE_KEYS)
-        keep = [o.replace("/", "_") for o in self.sweep_overrides
-                if override_key(o) not in skip
-                and not o.startswith("hydra")]
-        return "@" + ",".join(sorted(keep)) if keep else ""
+        if self._pending and self.root != self.shared_root:
+            raise RuntimeError("sweep_suffix() after a file was staged under the job's folder")
+        self.root = self.shared_root
+        keep = self._overrides_named(ignore)
+        return "@" + ",".join(keep) if keep else ""
 
     @property
     def by_hand(self) -> bool:

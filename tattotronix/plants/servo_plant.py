@@ -259,8 +259,10 @@ class ServoArm:
         d.ctrl[:] = command[0]
         if m.nhistory:  # the delay buffers start full of the first command
             for i in range(m.nu):
-                mj.mj_initCtrlHistory(m, d, i, None, np.full(
-                    int(m.actuator_history[i, 0]), float(command[0, i])))
+                samples = int(m.actuator_history[i, 0])
+                if samples:  # a servo without latency has no buffer
+                    mj.mj_initCtrlHistory(m, d, i, None,
+                                          np.full(samples, float(command[0, i])))
         mj.mj_forward(m, d)
         state = np.empty(mj.mj_stateSize(m, self._kind))
         mj.mj_getState(m, d, state, self._kind)
