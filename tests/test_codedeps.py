@@ -77,10 +77,11 @@ def test_every_stage_that_builds_the_robot_depends_on_its_settings() -> None:
         builders.append(s.name)
         body = stages[s.name].get("do", stages[s.name])
         if s.name in ("robot", "mass"):
-            assert "robot" in body.get("params", []), s.name
+            assert "robot" in body.get("meta", {}).get("params", []), s.name
         else:
             assert "${paths.data}/robot/config.json" in s.deps, s.name
-            assert "robot" not in body.get("params", []), s.name  # held once, in that file
+            # held once, in that file
+            assert "robot" not in body.get("meta", {}).get("params", []), s.name
     assert {"ik", "trajectory", "simulate", "control"} <= set(builders), builders
     assert "${paths.data}/robot/config.json" in stages["robot"]["outs"]
 

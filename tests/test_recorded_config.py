@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 import yaml
 
-from tattotronix.config.tracked import override_keys, tracked_params
+from tattotronix.config.tracked import override_keys, param_stamps, stage_names, tracked_params
 from tattotronix.errors import ConfigError
 from tattotronix.io.npz import save_npz
 from tattotronix.io.provenance import only_keys, provenance_json, recorded_keys
@@ -71,19 +71,29 @@ def test_no_pipeline_file_is_refused(tmp_path: Path) -> None:
 
 
 def test_every_stage_of_the_pipeline_tracks_what_dvc_says() -> None:
-    """Our reading of dvc.yaml against DVC's own, stage by stage."""
+    """Our reading of dvc.yaml against DVC's own, stage by stage: the params DVC tracks
+    and those its stage's ``meta`` lists for the param stamp; and each stamp holds the
+    values of exactly those keys."""
     from dvc.dependency.param import ParamsDependency
     from dvc.repo import Repo
 
     params = yaml.safe_load((ROOT / "params.yaml").read_text())
+    stamps = param_stamps(ROOT, params)
     with Repo(str(ROOT)) as repo:
         stages = list(repo.index.stages)
         assert stages
+        assert sorted(s.addressing for s in stages) == sorted(stage_names(ROOT, params))
         for stage in stages:
             dvc_keys = sorted(k for d in stage.deps if isinstance(d, ParamsDependency)
                               for k in d.params)
-            assert sorted(tracked_params(stage.addressing, ROOT, params)) == dvc_keys, \
-                stage.addressing
+            meta_keys = list((stage.meta or {}).get("params", []))
+            ours = tracked_params(stage.addressing, ROOT, params)
+            assert sorted(ours) == sorted(dvc_keys + meta_keys), stage.addressing
+            if meta_keys:
+                stamp = json.loads(stamps[stage.addressing.split("@")[0]])
+                assert stamp == only_keys(params, meta_keys), stage.addressing
+                assert f"data/params/{stage.addressing.split('@')[0]}.json" in {
+                    d.def_path.replace("${paths.data}", "data") for d in stage.deps}
 
 
 def test_override_keys() -> None:

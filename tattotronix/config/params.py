@@ -325,12 +325,22 @@ def write_params(root: Path = PROJECT_ROOT, overrides: Sequence[str] = ()) -> Pa
     return path
 
 
+def _stamp_params(root: Path, folder: Path) -> None:
+    from tattotronix.config.tracked import write_param_stamps
+
+    changed = write_param_stamps(folder, root)
+    print(f"new params for {', '.join(changed)}" if changed else
+          "every stage's params are as stamped")
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: recompose ``params.yaml`` (default) or ``--check`` it."""
     ap = argparse.ArgumentParser(prog="tattotronix-params", description=__doc__.split("\n")[0])
     ap.add_argument("--check", action="store_true", help="only compare; exit 1 when stale")
     ap.add_argument("--stamp", type=Path, default=None,
                     help="with --check: write this file when fresh (the DVC gate)")
+    ap.add_argument("--param-stamps", type=Path, default=None, metavar="DIR",
+                    help="with --check: write each stage's param stamp into DIR when fresh")
     ap.add_argument("--root", type=Path, default=Path.cwd(),
                     help="project root (default: the current directory, as DVC runs it)")
     args = ap.parse_args(argv)
@@ -353,6 +363,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                 print(msg, file=sys.stderr)
                 return 1
             print(ok)
+            if args.param_stamps:
+                _stamp_params(args.root, args.param_stamps)
             if args.stamp:
                 args.stamp.parent.mkdir(parents=True, exist_ok=True)
                 # the stages trust these bytes without composing conf/ again (a params.yaml
@@ -363,6 +375,10 @@ def main(argv: Sequence[str] | None = None) -> int:
             return 0
         path = write_params(args.root)
         print(f"wrote {path}")
+        # the stamps too, so that `dvc status` names the stages whose params changed
+        stamps = _gate_stamp(args.root)
+        if stamps is not None and (args.root / "dvc.yaml").is_file():
+            _stamp_params(args.root, stamps.parent / "params")
         return 0
     except ConfigError as exc:
         print(exc, file=sys.stderr)

@@ -17,6 +17,8 @@ files) is refused by name rather than half-read.
 
 from __future__ import annotations
 
+import json
+import os
 import posixpath
 import re
 from collections.abc import Mapping, Sequence
@@ -28,10 +30,13 @@ import yaml
 from tattotronix.errors import ConfigError
 from tattotronix.io.outputs import override_key
 
-__all__ = ["DVC_FILE", "override_keys", "stage_names", "tracked_params"]
+__all__ = ["DVC_FILE", "PARAM_STAMPS", "override_keys", "param_stamps", "stage_names",
+           "tracked_params", "write_param_stamps"]
 
 #: the pipeline file, at the project root
 DVC_FILE = "dvc.yaml"
+#: where the param stamps go, under ``paths.data``
+PARAM_STAMPS = "params"
 
 _REF = re.compile(r"\$\{\s*([^}\s]+)\s*\}")
 
@@ -78,6 +83,13 @@ def _params(entries: Any, where: str) -> list[str]:
     return out
 
 
+def _listed(body: Mapping[str, Any]) -> Any:
+    """A stage's params: DVC's own ``params:`` or, stamped, ``meta: {params: ...}``."""
+    meta = body.get("meta")
+    stamped = meta.get("params") if isinstance(meta, Mapping) else None
+    return [*(body.get("params") or []), *(stamped or [])]
+
+
 def _stage_params(doc: Mapping[str, Any], params: Mapping[str, object]) -> dict[str, list[str]]:
     """Every stage's own params, by name (``name@key`` for each item of a ``foreach``)."""
     context: dict[str, Any] = dict(params)
@@ -91,14 +103,14 @@ def _stage_params(doc: Mapping[str, Any], params: Mapping[str, object]) -> dict[
             raise ConfigError(f"{DVC_FILE}: stage {name}: only plain and foreach stages "
                               "are read")
         if "foreach" not in body:
-            stages[str(name)] = _params(_interpolate(body.get("params"), context, name), name)
+            stages[str(name)] = _params(_interpolate(_listed(body), context, name), name)
             continue
         items = _interpolate(body["foreach"], context, str(name))
         pairs = items.items() if isinstance(items, Mapping) else ((v, v) for v in items)
         for key, item in pairs:
             full = f"{name}@{key}"
             ctx = {**context, "key": key, "item": item}
-            stages[full] = _params(_interpolate(body["do"].get("params"), ctx, full), full)
+            stages[full] = _params(_interpolate(_listed(body["do"]), ctx, full), full)
     return stages
 
 
@@ -138,13 +150,66 @@ def stage_names(root: Path, params: Mapping[str, object] | None = None) -> list[
     """Every stage of ``root/dvc.yaml`` as DVC names it (``name@key`` for foreach items);
     ``params`` is ``params.yaml``'s values (read from ``root`` if None)."""
     if params is None:
-        try:
-            loaded = yaml.load((root / "params.yaml").read_text(encoding="utf-8"),
-                               Loader=_LOADER)
-        except (OSError, yaml.YAMLError) as exc:
-            raise ConfigError(f"cannot read {root / 'params.yaml'}: {exc}") from None
-        params = loaded if isinstance(loaded, Mapping) else {}
+        params = _params_yaml(root)
     return list(_stage_params(_read(root), params))
+
+
+def param_stamps(root: Path, params: Mapping[str, object] | None = None) -> dict[str, str]:
+    """stage -> its param stamp: the JSON of the values of the params ``meta: {params:
+    ...}`` lists for it in ``root/dvc.yaml`` (a foreach stage's items share one), from
+    ``params`` (``params.yaml``'s values, read from ``root`` if None).
+
+    A stage depends on its stamp (``<paths.data>/params/<stage>.json``) instead of listing
+    its params for DVC, which would parse the whole ``params.yaml`` once per stage on every
+    ``dvc status`` and ``dvc repro`` and record every value in ``dvc.lock``.
+    """
+    from tattotronix.io.provenance import only_keys
+
+    if params is None:
+        params = _params_yaml(root)
+    doc = _read(root)
+    out: dict[str, str] = {}
+    for name, keys in _stage_params(doc, params).items():
+        definition = name.split("@")[0]
+        body = (doc.get("stages") or {}).get(definition) or {}
+        body = body.get("do", body)
+        meta = body.get("meta")
+        if not isinstance(meta, Mapping) or "params" not in meta:
+            continue
+        text = json.dumps(only_keys(params, keys), sort_keys=True, indent=1) + "\n"
+        if out.setdefault(definition, text) != text:
+            raise ConfigError(f"{DVC_FILE}: the items of stage {definition} track different "
+                              "params; a param stamp is one per stage")
+    return out
+
+
+def write_param_stamps(folder: Path, root: Path,
+                       params: Mapping[str, object] | None = None) -> list[str]:
+    """Write every stage's param stamp into ``folder`` (atomically; unchanged ones left
+    alone, those of stages that are gone removed); the stages whose stamp changed."""
+    fresh = param_stamps(root, params)
+    folder.mkdir(parents=True, exist_ok=True)
+    changed = []
+    for name, text in fresh.items():
+        path = folder / f"{name}.json"
+        if path.is_file() and path.read_text(encoding="utf-8") == text:
+            continue
+        tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+        changed.append(name)
+    for old in folder.glob("*.json"):
+        if old.stem not in fresh:
+            old.unlink()
+    return changed
+
+
+def _params_yaml(root: Path) -> Mapping[str, object]:
+    try:
+        loaded = yaml.load((root / "params.yaml").read_text(encoding="utf-8"), Loader=_LOADER)
+    except (OSError, yaml.YAMLError) as exc:
+        raise ConfigError(f"cannot read {root / 'params.yaml'}: {exc}") from None
+    return loaded if isinstance(loaded, Mapping) else {}
 
 
 def override_keys(overrides: Sequence[str]) -> tuple[str, ...]:

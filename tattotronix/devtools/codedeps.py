@@ -56,9 +56,27 @@ STAMP_DIR = "${paths.data}/code"
 _STAMP_CMD = f"python -m tattotronix.devtools.codedeps --stamp {STAMP_DIR}"
 
 
+#: the stage that checks params.yaml and writes the param stamps
+CONFIG_STAGE = "config"
+PARAM_STAMP_DIR = "${paths.data}/params"
+
+
 def stamp_dep(stage: str) -> str:
     """The stamp a stage depends on, as dvc.yaml says it."""
     return f"{STAMP_DIR}/{stage}.txt"
+
+
+def param_stamp_dep(stage: str) -> str:
+    """The param stamp a stage depends on, as dvc.yaml says it
+    (:func:`tattotronix.config.tracked.param_stamps`)."""
+    return f"{PARAM_STAMP_DIR}/{stage}.json"
+
+
+def _meta_params(body: dict[str, Any]) -> list[str] | None:
+    meta = body.get("meta")
+    if isinstance(meta, dict) and isinstance(meta.get("params"), list):
+        return [str(k) for k in meta["params"]]
+    return None
 
 
 def _collapse(root: Path, graph: CodeGraph, files: set[Path]) -> list[str]:
@@ -210,7 +228,8 @@ def check(root: Path = ROOT) -> list[str]:
     doc = _load(root)
     graph = CodeGraph(root)
     problems = []
-    names = []
+    names: list[str] = []
+    stamped: list[str] = []
     for name, body in _python_stages(doc, graph):
         names.append(name)
         deps = [str(d) for d in body.get("deps", [])]
@@ -220,6 +239,19 @@ def check(root: Path = ROOT) -> list[str]:
                             "stamp stands for them")
         if stamp_dep(name) not in deps:
             problems.append(f"stage '{name}': missing its stamp {stamp_dep(name)}")
+        if body.get("params"):
+            problems.append(f"stage '{name}': params listed for DVC: list them under "
+                            "meta: {params: ...} and depend on the param stamp")
+        if _meta_params(body) is not None:
+            stamped.append(name)
+            if param_stamp_dep(name) not in deps:
+                problems.append(f"stage '{name}': missing its param stamp "
+                                f"{param_stamp_dep(name)}")
+    config = doc["stages"].get(CONFIG_STAGE) or {}
+    outs = [next(iter(o)) if isinstance(o, dict) else o for o in config.get("outs", [])]
+    missing = [param_stamp_dep(n) for n in stamped if param_stamp_dep(n) not in outs]
+    if missing:
+        problems.append(f"stage '{CONFIG_STAGE}': does not write {', '.join(missing)}")
     code_stage = doc["stages"].get(CODE_STAGE)
     if code_stage != _code_stage(names):
         problems.append(f"stage '{CODE_STAGE}': not the stamp writer for {', '.join(names)}")
@@ -240,12 +272,21 @@ def write(root: Path = ROOT) -> int:
     graph = CodeGraph(root)
     changed = 0
     names = []
+    stamped: list[str] = []
     for name, body in _python_stages(doc, graph):
         names.append(name)
+        if body.get("params"):  # DVC would parse params.yaml for them: stamp them
+            meta = body.setdefault("meta", CommentedMap())
+            meta["params"] = CommentedSeq(body.pop("params"))
+            changed += 1
         deps = body.get("deps")
         written = [str(d) for d in deps] if deps is not None else []
-        wanted = [d for d in written if not _is_code(d) and d != stamp_dep(name)]
+        wanted = [d for d in written if not _is_code(d) and d != stamp_dep(name)
+                  and d != param_stamp_dep(name)]
         wanted.append(stamp_dep(name))
+        if _meta_params(body) is not None:
+            stamped.append(name)
+            wanted.append(param_stamp_dep(name))
         if written == wanted:
             continue
         changed += 1
@@ -254,6 +295,19 @@ def write(root: Path = ROOT) -> int:
             continue
         deps.clear()
         deps.extend(wanted)
+    config = doc["stages"].get(CONFIG_STAGE)
+    if config is not None:
+        outs = config.setdefault("outs", CommentedSeq())
+        keep = [o for o in outs
+                if not str(next(iter(o)) if isinstance(o, dict) else o).startswith(
+                    PARAM_STAMP_DIR + "/")]
+        fresh_outs = [*keep, *(CommentedMap({param_stamp_dep(n): CommentedMap(
+            {"cache": False})}) for n in stamped)]
+        if [dict(o) if isinstance(o, dict) else o for o in outs] != [
+                dict(o) if isinstance(o, dict) else o for o in fresh_outs]:
+            outs.clear()
+            outs.extend(fresh_outs)
+            changed += 1
     stage = _code_stage(names)
     current = doc["stages"].get(CODE_STAGE)
     if current is None or dict(current) != stage:
