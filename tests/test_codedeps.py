@@ -205,7 +205,9 @@ def test_editing_a_module_makes_exactly_its_importers_stale(clone: Path, module:
         _run(clone, "-m", "tattotronix.devtools.codedeps", "--stamp", "data/code")
     # dvc names foreach stages name@key: compare on the stage part
     assert {s.split("@")[0] for s in stale_now} == importers
-    # the edit undone and restamped: nothing is stale any more
-    assert not _dvc_status(clone)
+    # the edit undone and restamped: no stamp is stale any more (a clone without the
+    # pipeline's outputs has other changed deps: data/figures, partly in git)
+    assert not {s: p for s, p in _dvc_status(clone).items()
+                if s == CODE_STAGE or any(d.startswith("data/code/") for d in p)}
     if module == "tattotronix/pipeline.py":
         assert any(s.startswith("ik@") for s in stale_now)
