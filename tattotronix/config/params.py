@@ -8,8 +8,9 @@ README, "Configuration"). So ``params.yaml`` can silently fall behind an edit un
   recomposes ``conf/`` and stops, naming the keys that differ, when ``params.yaml`` is
   stale (``dvc exp run`` recomposes it itself, so there it has nothing to do);
 * every stage run by DVC makes the same check before it reads ``params.yaml``, unless
-  the gate's stamp holds the hash of these very bytes of ``conf/`` and ``params.yaml``
-  (then the gate has checked them, and composing ``conf/`` again would only cost time).
+  the gate's ``config.hash`` holds the hash of these very bytes of ``conf/`` and
+  ``params.yaml`` (then the gate has checked them, and composing ``conf/`` again would
+  only cost time).
 
 ``tattotronix-params`` (``python -m tattotronix.config.params``) rewrites ``params.yaml``;
 ``--check`` only compares. Both first refuse a ``conf/`` whose composition has a key out
@@ -228,8 +229,12 @@ def stale_message(root: Path = PROJECT_ROOT) -> str | None:
     )
 
 
-#: what the ``config`` gate writes into its stamp when ``params.yaml`` is fresh
+#: what the ``config`` gate writes into its hash file when ``params.yaml`` is fresh (its
+#: stamp, ``config.ok``, which stages depend on, never changes: a new param reruns only
+#: the stages whose param stamps change)
 _FRESH = "params.yaml is the composition of conf/: "
+#: the gate's hash file, beside its stamp
+GATE_HASH = "config.hash"
 
 
 def _fingerprint(root: Path) -> str:
@@ -245,8 +250,9 @@ def _fingerprint(root: Path) -> str:
     return "sha256:" + h.hexdigest()
 
 
-def _gate_stamp(root: Path) -> Path | None:
-    """The ``config`` gate's stamp for the pipeline ``params.yaml`` names."""
+def _gate_stamp(root: Path, name: str = "config.ok") -> Path | None:
+    """The ``config`` gate's stamp (or another of its files) for the pipeline
+    ``params.yaml`` names."""
     import yaml
 
     try:
@@ -255,13 +261,13 @@ def _gate_stamp(root: Path) -> Path | None:
         data = params["paths"]["data"]
     except (OSError, yaml.YAMLError, KeyError, TypeError):
         return None
-    return root / str(data) / "config.ok" if isinstance(data, str) else None
+    return root / str(data) / name if isinstance(data, str) else None
 
 
 def _gate_passed(root: Path) -> bool:
     """True when the ``config`` gate checked these very bytes of ``conf/`` and
     ``params.yaml`` (so a stage need not compose ``conf/`` again)."""
-    stamp = _gate_stamp(root)
+    stamp = _gate_stamp(root, GATE_HASH)
     try:
         text = stamp.read_text(encoding="utf-8") if stamp else ""
     except OSError:
@@ -338,7 +344,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="tattotronix-params", description=__doc__.split("\n")[0])
     ap.add_argument("--check", action="store_true", help="only compare; exit 1 when stale")
     ap.add_argument("--stamp", type=Path, default=None,
-                    help="with --check: write this file when fresh (the DVC gate)")
+                    help="with --check: write this file when fresh (the DVC gate), and the "
+                         "hash of conf/ and params.yaml beside it (config.hash)")
     ap.add_argument("--param-stamps", type=Path, default=None, metavar="DIR",
                     help="with --check: write each stage's param stamp into DIR when fresh")
     ap.add_argument("--root", type=Path, default=Path.cwd(),
@@ -367,9 +374,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                 _stamp_params(args.root, args.param_stamps)
             if args.stamp:
                 args.stamp.parent.mkdir(parents=True, exist_ok=True)
+                args.stamp.write_text("params.yaml is fresh\n", encoding="utf-8")
                 # the stages trust these bytes without composing conf/ again (a params.yaml
                 # an experiment composed is not the composition of conf/: no hash)
-                args.stamp.write_text(
+                (args.stamp.parent / GATE_HASH).write_text(
                     ok + "\n" if os.environ.get("DVC_EXP_NAME")
                     else _FRESH + _fingerprint(args.root) + "\n", encoding="utf-8")
             return 0

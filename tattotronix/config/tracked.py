@@ -18,7 +18,6 @@ files) is refused by name rather than half-read.
 from __future__ import annotations
 
 import json
-import os
 import posixpath
 import re
 from collections.abc import Mapping, Sequence
@@ -28,6 +27,7 @@ from typing import Any
 import yaml
 
 from tattotronix.errors import ConfigError
+from tattotronix.io.codegraph import write_stamp_folder
 from tattotronix.io.outputs import override_key
 
 __all__ = ["DVC_FILE", "PARAM_STAMPS", "override_keys", "param_stamps", "stage_names",
@@ -185,23 +185,9 @@ def param_stamps(root: Path, params: Mapping[str, object] | None = None) -> dict
 
 def write_param_stamps(folder: Path, root: Path,
                        params: Mapping[str, object] | None = None) -> list[str]:
-    """Write every stage's param stamp into ``folder`` (atomically; unchanged ones left
-    alone, those of stages that are gone removed); the stages whose stamp changed."""
-    fresh = param_stamps(root, params)
-    folder.mkdir(parents=True, exist_ok=True)
-    changed = []
-    for name, text in fresh.items():
-        path = folder / f"{name}.json"
-        if path.is_file() and path.read_text(encoding="utf-8") == text:
-            continue
-        tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
-        changed.append(name)
-    for old in folder.glob("*.json"):
-        if old.stem not in fresh:
-            old.unlink()
-    return changed
+    """Write every stage's param stamp into ``folder`` (:func:`write_stamp_folder`); the
+    stages whose stamp changed."""
+    return write_stamp_folder(folder, param_stamps(root, params), ".json")
 
 
 def _params_yaml(root: Path) -> Mapping[str, object]:

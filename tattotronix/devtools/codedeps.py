@@ -40,6 +40,7 @@ from tattotronix.io.codegraph import (
     CodeGraph,
     entry_of,
     stamp_text,
+    write_stamp_folder,
 )
 
 __all__ = ["CODE_STAGE", "CodeGraph", "StageDeps", "check", "code_deps", "stage_deps",
@@ -187,24 +188,9 @@ def stamps(root: Path = ROOT) -> dict[str, str]:
 
 
 def write_stamps(folder: Path, root: Path = ROOT) -> list[str]:
-    """Write every stage's stamp into ``folder`` (atomically; a stamp whose text is
-    unchanged is left alone, stamps of stages that are gone are removed); the stages
+    """Write every stage's stamp into ``folder`` (:func:`write_stamp_folder`); the stages
     whose stamp changed."""
-    folder.mkdir(parents=True, exist_ok=True)
-    fresh = stamps(root)
-    changed = []
-    for name, text in fresh.items():
-        path = folder / f"{name}.txt"
-        if path.is_file() and path.read_text(encoding="utf-8") == text:
-            continue
-        tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
-        changed.append(name)
-    for old in folder.glob("*.txt"):
-        if old.stem not in fresh:
-            old.unlink()
-    return changed
+    return write_stamp_folder(folder, stamps(root), ".txt")
 
 
 def stale(folder: Path, root: Path = ROOT) -> list[str]:

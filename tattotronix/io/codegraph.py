@@ -20,12 +20,14 @@ from __future__ import annotations
 
 import ast
 import hashlib
+import os
 import shlex
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["PACKAGES", "CodeGraph", "entry_of", "stamp_text", "version_of_stamp"]
+__all__ = ["PACKAGES", "CodeGraph", "entry_of", "stamp_text", "version_of_stamp",
+           "write_stamp_folder"]
 
 ROOT = Path(__file__).resolve().parents[2]
 #: importable project packages (their files are code when executed)
@@ -201,3 +203,23 @@ def version_of_stamp(stamp: str | bytes) -> str:
     """The code version a stamp stands for: ``sha256:`` and the hash of its bytes."""
     data = stamp.encode("utf-8") if isinstance(stamp, str) else stamp
     return "sha256:" + hashlib.sha256(data).hexdigest()
+
+
+def write_stamp_folder(folder: Path, stamps: Mapping[str, str], suffix: str) -> list[str]:
+    """Write ``stamps`` (stage -> text) into ``folder`` as ``<stage><suffix>``: atomically,
+    leaving a file whose text is unchanged alone (DVC then sees nothing new) and removing
+    the stamps of stages that are gone; the stages whose stamp changed."""
+    folder.mkdir(parents=True, exist_ok=True)
+    changed = []
+    for name, text in stamps.items():
+        path = folder / f"{name}{suffix}"
+        if path.is_file() and path.read_text(encoding="utf-8") == text:
+            continue
+        tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+        changed.append(name)
+    for old in folder.glob(f"*{suffix}"):
+        if old.name[: -len(suffix)] not in stamps:
+            old.unlink()
+    return changed
