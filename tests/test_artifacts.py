@@ -239,34 +239,35 @@ def test_npz_bytes_depend_only_on_the_arrays(tmp_path: Path) -> None:
 
 
 def test_code_version_is_the_imported_code_not_the_checkout(tmp_path: Path) -> None:
-    """Two copies of the code anywhere on disk give one version; editing a module the
-    process imported moves it, editing one it did not import (or a document) does not."""
+    """A process with no project entry point (a notebook, the tests): two copies of the
+    code anywhere on disk give one version; editing a module the process imported moves
+    it, editing one it did not import (or a document) does not."""
     from tattotronix.io.provenance import code_version
 
-    copies = []
-    for where in ("a", "b/deeper"):
+    def copy(where: str, used: str = "X = 1\n", unused: str = "Y = 1\n",
+             docs: str = "docs\n") -> Path:
         root = tmp_path / where
         (root / "tattotronix").mkdir(parents=True)
-        (root / "tattotronix" / "used.py").write_text("X = 1\n")
-        (root / "tattotronix" / "unused.py").write_text("Y = 1\n")
-        (root / "README.md").write_text("docs\n")
-        copies.append(root)
+        (root / "tattotronix" / "__init__.py").write_text("")
+        (root / "tattotronix" / "used.py").write_text(used)
+        (root / "tattotronix" / "unused.py").write_text(unused)
+        (root / "README.md").write_text(docs)
+        return root
+
     import sys
     import types
 
     def load(root: Path) -> str:
-        mod = types.ModuleType("_cv_used")
+        mod = types.ModuleType("tattotronix.used")
         mod.__file__ = str(root / "tattotronix" / "used.py")
-        sys.modules["_cv_used"] = mod
+        sys.modules["tattotronix.used"] = mod
         try:
             return code_version(root)
         finally:
-            del sys.modules["_cv_used"]
+            del sys.modules["tattotronix.used"]
 
-    a, b = (load(r) for r in copies)
-    assert a == b and a.startswith("sha256:")
-    (copies[0] / "tattotronix" / "unused.py").write_text("Y = 2\n")
-    (copies[0] / "README.md").write_text("other docs\n")
-    assert load(copies[0]) == a
-    (copies[0] / "tattotronix" / "used.py").write_text("X = 2\n")
-    assert load(copies[0]) != a
+    a = load(copy("a"))
+    assert a.startswith("sha256:")
+    assert load(copy("b/deeper")) == a
+    assert load(copy("c", unused="Y = 2\n", docs="other docs\n")) == a
+    assert load(copy("d", used="X = 2\n")) != a
