@@ -4,11 +4,12 @@ Reads ``data/mask/<name>.npz`` (run the ``mask`` stage first) and, with ``artwor
 the artwork's vector lines ``data/artwork/<name>-lines.npz``, and writes
 ``data/toolpath/<name>.npz`` (``uvz_mm``, ``kind``, ``xyz_m``, ``stroke``, ``t_s``, and per
 drawn stroke ``stroke_kind``, ``stroke_region`` and ``stroke_width_mm``; ``provenance``),
-the figures ``data/figures/<name>/toolpath.png`` and
-``data/figures/<name>/artwork_ink.png`` (the planned ink over the artwork, bleed in red)
-and ``data/metrics/toolpath/<name>.json`` (ours and, under ``original_order``, the same
-figures for the original's ordering rule; under ``artwork``, the planned ink against the
-artwork: tattotronix/path/fidelity.py).
+the same plan as an SVG in millimetres ``data/toolpath/<name>.svg`` (the panel as the
+page, one layer per stroke kind, drags and travel: tattotronix/path/export.py), the
+figures ``data/figures/<name>/toolpath.png`` and ``data/figures/<name>/artwork_ink.png``
+(the planned ink over the artwork, bleed in red) and ``data/metrics/toolpath/<name>.json``
+(ours and, under ``original_order``, the same figures for the original's ordering rule;
+under ``artwork``, the planned ink against the artwork: tattotronix/path/fidelity.py).
 """
 
 from __future__ import annotations
@@ -20,6 +21,7 @@ from tattotronix.art.stored import stored_artwork
 from tattotronix.config.schema import Config
 from tattotronix.io.artifacts import ToolpathRecord, make_provenance
 from tattotronix.io.outputs import Outputs
+from tattotronix.path.export import panel_extent_mm, toolpath_svg
 from tattotronix.path.figure import toolpath_figure
 from tattotronix.path.inkfigure import artwork_ink_figure
 from tattotronix.path.params import ToolpathParams
@@ -53,6 +55,8 @@ def main(cfg: Config, out: Outputs) -> None:
         stroke_width_mm=tp.drawing.width_mm[seq],
     ).save(out.tmp_path(ToolpathRecord.path(out.root, name=name)),
            make_provenance(cfg, stored.inputs))
+    out.write_text(out.path("toolpath", f"{name}.svg"),
+                   toolpath_svg(tp, needle, panel_extent_mm(params.panel_size_mm), name))
     toolpath_figure(
         tp, params.panel_size_mm, out.tmp_path(out.path("figures", name, "toolpath.png")), name
     )
