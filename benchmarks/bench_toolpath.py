@@ -89,7 +89,8 @@ def _chain(source: Path | None, mcfg: MaskConfig, params: ToolpathParams
         except ImportError:
             mask = _synthetic(mcfg.res_mm)
         else:
-            art = load_artwork(source, mcfg.width_mm, mcfg.res_mm, 40_000_000)
+            art = load_artwork(source, mcfg.width_mm, mcfg.res_mm, 40_000_000,
+                               default_width_mm=mcfg.default_width_mm)
             t1 = time.perf_counter()
             times["artwork"] = t1 - t0
             mask = make_mask(art.grey, mcfg.res_mm, mcfg.method, mcfg.min_region_mm2)[0]

@@ -1,7 +1,8 @@
 """Stage ``artwork``: a PNG, JPG or SVG file (or a built-in) to a grey raster on the mask grid.
 
-Writes ``data/artwork/<name>.png`` (8-bit grey, ``mask.width_mm`` wide at ``mask.res_mm``
-per pixel) and ``data/metrics/artwork/<name>.json``. ``artwork.source`` picks the file
+Writes ``data/artwork/<name>.png`` (8-bit grey, on the mask grid: ``mask.width_mm`` wide,
+or an SVG's own physical width, at ``mask.res_mm`` per pixel or finer for thin strokes;
+tattotronix/art/sizing.py) and ``data/metrics/artwork/<name>.json``. ``artwork.source`` picks the file
 (null: the built-in emblem; ``portrait``: the built-in photograph); ``artwork.name``
 names the outputs and defaults to the file's stem. With ``artwork.vector=true`` an SVG's
 stroked lines are also written, from its geometry, to ``data/artwork/<name>-lines.npz``
@@ -36,6 +37,7 @@ def main(cfg: Config, out: Outputs) -> None:
     art = load_artwork(
         cfg.artwork.source, cfg.mask.width_mm, cfg.mask.res_mm, cfg.artwork.max_pixels, name,
         svg_local_files=cfg.artwork.svg_local_files,
+        default_width_mm=cfg.mask.default_width_mm, min_line_px=cfg.mask.min_line_px,
     )
     ink, _, _ = otsu_ink(art.grey)
     lines = (artwork_lines(cfg.artwork.source, art.shape, art.res_mm, cfg.toolpath.step_mm)

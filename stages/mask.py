@@ -17,7 +17,7 @@ import logging
 import numpy as np
 from PIL import Image
 
-from tattotronix.art.artwork import artwork_name
+from tattotronix.art.artwork import artwork_grid, artwork_name
 from tattotronix.art.mask import make_mask
 from tattotronix.config.schema import Config
 from tattotronix.errors import TattotronixError
@@ -41,16 +41,11 @@ def main(cfg: Config, out: Outputs) -> None:
             f"cannot read {src} ({type(exc).__name__}: {' '.join(str(exc).split())}); "
             "re-run the 'artwork' stage"
         ) from None
-    want_w = max(round(cfg.mask.width_mm / cfg.mask.res_mm), 1)
-    if grey.shape[1] != want_w:
-        raise TattotronixError(
-            f"{src} is {grey.shape[1]} px wide, but mask.width_mm={cfg.mask.width_mm:g} at "
-            f"mask.res_mm={cfg.mask.res_mm:g} needs {want_w} px: re-run the 'artwork' stage "
-            "with the same mask settings"
-        )
+    res_mm = artwork_grid(out.require(out.input("metrics", "artwork", f"{name}.json"),
+                                      "artwork"), grey.shape)
     mask, stats = make_mask(
         grey,
-        cfg.mask.res_mm,
+        res_mm,
         cfg.mask.method,
         cfg.mask.min_region_mm2,
         edge_sigma_px=cfg.mask.edge_sigma_px,

@@ -102,9 +102,10 @@ def mask_of(cfg: Config, source: str | Path | None, name: str) -> InkMask:
     """
     m = cfg.mask
     art = load_artwork(source, m.width_mm, m.res_mm, cfg.artwork.max_pixels, name,
-                       svg_local_files=cfg.artwork.svg_local_files)
+                       svg_local_files=cfg.artwork.svg_local_files,
+                       default_width_mm=m.default_width_mm, min_line_px=m.min_line_px)
     grey = art.as_uint8().astype(np.float64)  # what the artwork stage's PNG holds
-    mask, _ = make_mask(grey, m.res_mm, m.method, m.min_region_mm2,
+    mask, _ = make_mask(grey, art.res_mm, m.method, m.min_region_mm2,
                         edge_sigma_px=m.edge_sigma_px, edge_k=m.edge_k,
                         auto_invert=m.auto_invert)
     return mask

@@ -36,7 +36,8 @@ MAX_PX = ArtworkConfig().max_pixels
 PANEL_W_MM, PANEL_H_MM = (1000.0 * s for s in PanelConfig().size[:2])
 
 
-def _load(source: str | Path | None, width_mm: float = MASK.width_mm, **kw: object):
+def _load(source: str | Path | None, width_mm: float | None = MASK.default_width_mm,
+          **kw: object):
     return load_artwork(source, width_mm, MASK.res_mm, kw.pop("max_pixels", MAX_PX), **kw)
 
 
@@ -92,7 +93,7 @@ def test_emblem_fits_the_panel_and_is_drawable(emblem) -> None:
     art, mask, stats = emblem
     assert art.name == "emblem" and art.kind == "svg" and art.source == "builtin:emblem"
     w_mm, h_mm = art.size_mm
-    assert w_mm == pytest.approx(MASK.width_mm)
+    assert w_mm == pytest.approx(MASK.default_width_mm)
     assert w_mm <= PANEL_W_MM and h_mm <= PANEL_H_MM
     assert h_mm / w_mm < 0.93
     assert 5.0 < stats.ink_pct < 25.0

@@ -221,10 +221,10 @@ def test_stages_end_to_end_on_the_builtin(tmp_path: Path) -> None:
     assert art.returncode == 0, art.stderr
     raster = tmp_path / "artwork" / "emblem.png"
     with Image.open(raster) as im:
-        assert im.mode == "L" and im.size == (round(MASK.width_mm / RES), 352)
+        assert im.mode == "L" and im.size == (round(MASK.default_width_mm / RES), 352)
     art_metrics = json.loads((tmp_path / "metrics" / "artwork" / "emblem.json").read_text())
     assert art_metrics["kind"] == "svg" and art_metrics["source"] == "builtin:emblem"
-    assert art_metrics["width_mm"] == pytest.approx(MASK.width_mm)
+    assert art_metrics["width_mm"] == pytest.approx(MASK.default_width_mm)
     assert 0.05 < art_metrics["ink_fraction"] < 0.25
 
     run = _run("stages/mask.py", data)

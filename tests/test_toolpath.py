@@ -167,7 +167,8 @@ def test_builtin_artwork_ordering_beats_original_rule() -> None:
     from tattotronix.art.mask import make_mask
 
     mcfg = MaskConfig()
-    art = load_artwork(None, mcfg.width_mm, mcfg.res_mm, 40_000_000)
+    art = load_artwork(None, mcfg.width_mm, mcfg.res_mm, 40_000_000,
+                       default_width_mm=mcfg.default_width_mm)
     mask, _ = make_mask(art.grey, mcfg.res_mm, mcfg.method, mcfg.min_region_mm2)
     tp = plan_toolpath(mask, default_params())
     assert tp.metrics.travel_mm < tp.original.travel_mm

@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 from PIL import Image, ImageOps
 
 from tattotronix.art.mask import NoInkError
+from tattotronix.art.sizing import drawing_width_mm, grid_pitch_mm, svg_strokes, thinnest_stroke
 from tattotronix.config.schema import ArtworkConfig
 from tattotronix.errors import TattotronixError
 
@@ -47,6 +48,7 @@ __all__ = [
     "ASSETS_DIR",
     "Artwork",
     "BUILTINS",
+    "artwork_grid",
     "DEFAULT_ARTWORK",
     "SUPPORTED_SUFFIXES",
     "artwork_name",
@@ -514,6 +516,17 @@ def _render_svg(
     return grey.astype(np.float64), (round(size[0]), round(size[1])), (im.width, im.height)
 
 
+def _svg_grid(path: Path, label: str, width_mm: float | None, default_width_mm: float | None,
+              res_mm: float, min_line_px: float) -> tuple[float, float]:
+    """The drawn width and the grid pitch of an SVG, mm (:mod:`tattotronix.art.sizing`)."""
+    text = read_svg(path, label)
+    width = drawing_width_mm(width_mm, default_width_mm, _parse_svg(text, label).get("width"))
+    if min_line_px <= 0:
+        return width, res_mm
+    strokes = svg_strokes(path, width / svg_intrinsic_size(text, label)[0])
+    return width, grid_pitch_mm(res_mm, thinnest_stroke(strokes), min_line_px)
+
+
 def _resample(grey: NDArray[np.float64], out_h: int, out_w: int) -> NDArray[np.float64]:
     """Bilinear when enlarging, area averaging when shrinking."""
     h, w = grey.shape
@@ -528,24 +541,33 @@ def _resample(grey: NDArray[np.float64], out_h: int, out_w: int) -> NDArray[np.f
 
 def load_artwork(
     source: str | Path | None,
-    width_mm: float,
+    width_mm: float | None,
     res_mm: float,
     max_pixels: int,
     name: str | None = None,
     *,
     svg_local_files: bool = False,
+    default_width_mm: float | None = None,
+    min_line_px: float = 0.0,
 ) -> Artwork:
     """Read an artwork and put it on the mask grid.
 
     Args:
         source: a PNG, JPG or SVG path; a built-in name (``emblem``, ``portrait``); or
             None for the built-in emblem.
-        width_mm: drawing width, mm.
-        res_mm: mask grid pitch, mm per pixel.
+        width_mm: drawing width, mm; None: an SVG's own physical width, else
+            ``default_width_mm`` (:func:`tattotronix.art.sizing.drawing_width_mm`).
+        res_mm: the coarsest mask grid pitch, mm per pixel; an SVG whose thinnest stroke
+            spans fewer than ``min_line_px`` pixels gets a finer one
+            (:func:`tattotronix.art.sizing.grid_pitch_mm`). :attr:`Artwork.res_mm` is the
+            pitch used.
         max_pixels: refuse sources (and SVG renderings, and grids) with more pixels.
         name: output name; default the source's stem.
         svg_local_files: an SVG may refer to files in its own folder (``<image
             href="photo.png">``); by default any external reference is refused.
+        default_width_mm: the width of an artwork with no physical size of its own
+            (``mask.default_width_mm``; needed when ``width_mm`` is None).
+        min_line_px: the fewest pixels a stroked line may span (0: never refine).
 
     Returns:
         The grey raster on the grid.
@@ -566,10 +588,13 @@ def load_artwork(
             "give a PNG, JPG or SVG file"
         )
     if suffix in SVG_SUFFIXES:
+        width_mm, res_mm = _svg_grid(path, label, width_mm, default_width_mm, res_mm,
+                                     min_line_px)
         grey, original_px, render_px = _render_svg(path, width_mm, res_mm, max_pixels,
                                                    svg_local_files)
         kind = "svg"
     else:
+        width_mm = drawing_width_mm(width_mm, default_width_mm)
         im, fmt = _open_raster(path, label, max_pixels)
         kind = fmt or suffix.lstrip(".")
         original_px, render_px = (im.width, im.height), None
@@ -600,3 +625,26 @@ def load_artwork(
         art.name, kind, *original_px, art.shape[1], art.shape[0], w_mm, h_mm,
     )
     return art
+
+
+def artwork_grid(metrics: Path, shape: tuple[int, ...]) -> float:
+    """The grid pitch (mm) the artwork stage chose for a raster of ``shape``, read from its
+    metrics file (``res_mm`` and ``raster_px``): the one record of the drawing's size.
+
+    Raises:
+        TattotronixError: the metrics are unreadable or do not describe this raster (the
+            message says to re-run the ``artwork`` stage).
+    """
+    import json
+
+    fix = "re-run the 'artwork' stage"
+    try:
+        rec = json.loads(metrics.read_text(encoding="utf-8"))
+        res_mm, (w, h) = float(rec["res_mm"]), rec["raster_px"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise TattotronixError(f"cannot read the artwork's grid from {metrics} "
+                               f"({_one_line(exc)}): {fix}") from None
+    if (int(h), int(w)) != tuple(shape[:2]) or not res_mm > 0:
+        raise TattotronixError(f"the artwork raster is {shape[1]} x {shape[0]} px but "
+                               f"{metrics} records {w} x {h} px: {fix}")
+    return res_mm

@@ -485,9 +485,16 @@ class ArtworkConfig:
 class MaskConfig:
     """Artwork to ink mask."""
 
-    width_mm: float = bounded(150.0, lo=0, lo_open=True, hi=1000, unit="mm")
+    # the drawing's width; null: an SVG's own physical width (mm, cm, in, pt, pc),
+    # else default_width_mm (tattotronix/art/sizing.py)
+    width_mm: float | None = bounded(None, lo=0, lo_open=True, hi=1000, unit="mm")
+    default_width_mm: float = bounded(150.0, lo=0, lo_open=True, hi=1000, unit="mm",
+                                      why="the width of an artwork with no size of its own")
     res_mm: float = bounded(0.25, lo=MIN_RES_MM, hi=10, unit="mm",
-                            why="the mask grid's pixel")
+                            why="the mask grid's coarsest pixel")
+    # an SVG's thinnest stroke spans at least this many mask pixels: res_mm is refined
+    # until it does (a 0.5 mm line at 0.25 mm/px is thresholded into dashes); 0: never
+    min_line_px: float = bounded(3.0, lo=0, hi=100, unit="px")
     method: MaskMethod = MaskMethod.threshold
     min_region_mm2: float = bounded(4.0, lo=0, hi=1e5, unit="mm^2")
     edge_sigma_px: float = bounded(2.0, lo=0, hi=100, unit="px")

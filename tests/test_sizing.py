@@ -1,0 +1,134 @@
+"""The drawing's size and grid pitch from the artwork itself (tattotronix/art/sizing.py):
+an SVG's physical size, and thin strokes never thresholded into dashes."""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tattotronix.art.artwork import artwork_grid, load_artwork
+from tattotronix.art.sizing import (
+    PITCH_LADDER,
+    Stroke,
+    drawing_width_mm,
+    grid_pitch_mm,
+    physical_width_mm,
+)
+from tattotronix.config.schema import MaskConfig
+from tattotronix.errors import TattotronixError
+
+MASK = MaskConfig()
+MAX_PX = 100_000_000
+
+
+def _waves(tmp_path: Path, widths: tuple[float, ...], size: str = 'width="120mm" '
+           'height="60mm"') -> Path:
+    """Stroked sine waves, one per width (user units are mm at the SVG's own size)."""
+    rows = []
+    for i, w in enumerate(widths):
+        y = 10 + 12 * i
+        pts = " ".join(f"{x:.2f},{y + 3 * math.sin(x / 5):.3f}" for x in np.arange(5, 115, 0.5))
+        rows.append(f'<polyline id="wave{i}" points="{pts}" stroke-width="{w}"/>')
+    svg = tmp_path / "waves.svg"
+    svg.write_text(f'<svg xmlns="http://www.w3.org/2000/svg" {size} viewBox="0 0 120 60">'
+                   f'<g fill="none" stroke="black">{"".join(rows)}</g></svg>')
+    return svg
+
+
+def _load(svg: Path, width_mm: float | None = None, min_line_px: float = MASK.min_line_px):
+    return load_artwork(svg, width_mm, MASK.res_mm, MAX_PX, default_width_mm=MASK.default_width_mm,
+                        min_line_px=min_line_px)
+
+
+def _line_shares(svg: Path, *overrides: str) -> tuple[float, np.ndarray]:
+    """Plan the SVG at the defaults (plus ``overrides``): the grid pitch, and each stroked
+    line's share of its length the needle passes along."""
+    from tattotronix.art.artwork import read_svg, svg_intrinsic_size
+    from tattotronix.art.vector import svg_lines
+    from tattotronix.config.params import compose_settings
+    from tattotronix.path.linecover import line_coverage
+    from tattotronix.path.params import ToolpathParams
+    from tattotronix.path.plan import plan_toolpath
+    from tattotronix.pipeline import mask_of
+
+    cfg = compose_settings([f"artwork.source={svg}", *overrides])
+    mask = mask_of(cfg, svg, "waves")
+    tp = plan_toolpath(mask, ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel))
+    lines = svg_lines(svg, svg_intrinsic_size(read_svg(svg)), mask.ink.shape, mask.res_mm, 0.05)
+    marking = tp.path.uvz_mm[tp.path.kind == 1, :2]
+    return mask.res_mm, line_coverage(lines.paths, lines.widths_mm, marking,
+                                      cfg.toolpath.needle_width_mm, cfg.toolpath.step_mm)
+
+
+def test_an_svg_with_a_physical_size_is_drawn_at_it_unless_a_width_is_set(tmp_path):
+    svg = _waves(tmp_path, (1.0,))
+    assert _load(svg).size_mm[0] == pytest.approx(120.0)
+    assert _load(svg, width_mm=60.0).size_mm[0] == pytest.approx(60.0)
+    for size, mm in (('width="12cm" height="6cm"', 120.0), ('width="4in" height="2in"', 101.6),
+                     ('width="120" height="60"', MASK.default_width_mm),
+                     ('width="100%" height="100%"', MASK.default_width_mm)):
+        drawn = _load(_waves(tmp_path, (1.0,), size)).size_mm[0]
+        assert drawn == pytest.approx(mm, abs=MASK.res_mm), size
+
+
+def test_thin_strokes_at_the_default_resolution_are_whole_lines_not_dashes(tmp_path):
+    """The issue's dashes: 0.5 to 0.65 mm lines at 0.25 mm/px were planned as dashes. With
+    the pitch chosen from the thinnest stroke the needle passes along every whole line."""
+    svg = _waves(tmp_path, (0.5, 0.65))
+    res, dashed = _line_shares(svg, "mask.min_line_px=0")
+    assert res == MASK.res_mm and dashed.min() < 0.8  # the failure this guards against
+
+    res, shares = _line_shares(svg)
+    assert res < MASK.res_mm and 0.5 / res >= MASK.min_line_px
+    assert shares.min() >= 0.95, shares
+
+
+def test_the_pitch_is_the_coarsest_of_the_ladder_that_gives_the_thinnest_line_its_pixels(
+        caplog):
+    assert grid_pitch_mm(0.25, None, 3) == 0.25
+    assert grid_pitch_mm(0.25, Stroke("<path>", 0.8), 3) == 0.25  # 3.2 px: kept
+    assert grid_pitch_mm(0.25, Stroke("<path>", 0.5), 0) == 0.25  # refinement off
+    with caplog.at_level(logging.INFO, logger="tattotronix.art.sizing"):
+        assert grid_pitch_mm(0.25, Stroke('<polyline id="w">', 0.5), 3) == 0.125
+    assert '<polyline id="w">' in caplog.text
+    assert grid_pitch_mm(0.25, Stroke("<path>", 0.65), 3) == 0.2
+    assert grid_pitch_mm(0.1, Stroke("<path>", 0.3), 3) == 0.1  # never coarser than res_mm
+    for width in np.linspace(0.07, 2.0, 40):
+        pitch = grid_pitch_mm(0.25, Stroke("<path>", float(width)), 3)
+        assert pitch <= 0.25 and pitch in (0.25, *PITCH_LADDER)
+        assert width / pitch >= 3 - 1e-9
+        coarser = [p for p in PITCH_LADDER if pitch < p <= 0.25]
+        assert all(width / p < 3 for p in coarser)
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="tattotronix.art.sizing"):
+        assert grid_pitch_mm(0.25, Stroke('<line id="hair">', 0.01), 3) == PITCH_LADDER[-1]
+    assert 'hair' in caplog.text and "spans 0.5 px" in caplog.text
+
+
+def test_physical_width_and_the_fallbacks():
+    assert physical_width_mm("25.4mm") == pytest.approx(25.4)
+    assert physical_width_mm("1in") == pytest.approx(25.4)
+    assert physical_width_mm("72pt") == pytest.approx(25.4)
+    for other in (None, "100", "100px", "50%", "wide", "-3mm"):
+        assert physical_width_mm(other) is None
+    assert drawing_width_mm(80.0, 150.0, "10mm") == 80.0
+    assert drawing_width_mm(None, 150.0, "10mm") == pytest.approx(10.0)
+    assert drawing_width_mm(None, 150.0, "10") == 150.0
+    with pytest.raises(TattotronixError, match="set mask.width_mm"):
+        drawing_width_mm(None, None, "10")
+
+
+def test_the_mask_reads_the_grid_the_artwork_stage_chose(tmp_path):
+    metrics = tmp_path / "art.json"
+    metrics.write_text(json.dumps({"res_mm": 0.125, "raster_px": [960, 480]}))
+    assert artwork_grid(metrics, (480, 960)) == 0.125
+    with pytest.raises(TattotronixError, match="re-run the 'artwork' stage"):
+        artwork_grid(metrics, (240, 480))
+    metrics.write_text("{")
+    with pytest.raises(TattotronixError, match="cannot read the artwork's grid"):
+        artwork_grid(metrics, (480, 960))
