@@ -153,6 +153,10 @@ def test_a_change_dvc_does_not_rerun_a_stage_on_leaves_its_bytes(tmp_path: Path)
         shutil.copy(ROOT / name, root / name)
     (root / "data" / "artwork").mkdir(parents=True)
     small_art(root / "data" / "artwork" / "small.png")
+    # the grid the artwork stage would record for it (24 mm at 0.1 mm/px)
+    (root / "data" / "metrics" / "artwork").mkdir(parents=True)
+    (root / "data" / "metrics" / "artwork" / "small.json").write_text(
+        json.dumps({"res_mm": 0.1, "raster_px": [240, 120]}))
     first = _mask_run(root)
     params = root / "params.yaml"
     doc = yaml.safe_load(params.read_text())
