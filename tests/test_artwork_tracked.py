@@ -84,7 +84,7 @@ def test_an_edit_to_a_users_artwork_makes_its_stage_stale(tmp_path: Path) -> Non
     assert ran == ["Running stage 'code':", "Running stage 'config':",
                    "Running stage 'artwork@mine':"], made.stdout
     metrics = json.loads((clone / "data" / "metrics" / "artwork" / "mine.json").read_text())
-    assert metrics["source"] == "art/mine.png" and metrics["raster_px"][0] == 120
+    assert metrics["source"] == "art/mine.png" and metrics["raster_px"][0] == 96
     clean = dvc("status", "--json", "artwork@mine")
     assert clean.returncode == 0 and json.loads(clean.stdout) == {}, clean.stdout
 
