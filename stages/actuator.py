@@ -36,7 +36,8 @@ log = logging.getLogger("tattotronix.actuator")
 def main(cfg: Config, out: Outputs) -> None:
     """Run the actuator study on one artwork's trajectory; write metrics, series, figure."""
     name = artwork_name(cfg.artwork)
-    src = TrajectoryRecord.require(out.data, name=name)
+    src = out.require(out.input(*TrajectoryRecord.path("", name=name).parts),
+                      "trajectory")
     desc = build_description(cfg.robot)
     chain = Chain.from_description(desc)
     frame_hz = calibration_from_config(cfg.hardware, desc.joint_names).frame_hz

@@ -47,13 +47,15 @@ def main(cfg: Config, out: Outputs) -> None:
     gl = select_gl()  # MuJoCo's OpenGL platform: before anything imports mujoco
     name = artwork_name(cfg.artwork)
     desc = build_description(cfg.robot)
-    traj = load_trajectory(TrajectoryRecord.require(out.data, name=name))
+    traj = load_trajectory(out.require(
+        out.input(*TrajectoryRecord.path("", name=name).parts), "trajectory"))
     urdf = out.require(out.input("robot", f"{desc.name}.urdf"), "robot")
     mjcf = out.require(out.input("robot", f"{desc.name}.xml"), "robot")
-    run_file = RunLogRecord.path(out.data, label=run_label(name, BACKEND))
+    run_rel = RunLogRecord.path("", label=run_label(name, BACKEND)).parts
+    run_file = out.input(*run_rel)  # a simulate run by hand's log, else the pipeline's
     run: dict[str, np.ndarray] = {}
     if run_file.exists():
-        rec = RunLogRecord.load_run(out.data, name, BACKEND)
+        rec = RunLogRecord.load_run(out.input_root(*run_rel), name, BACKEND)
         run = {"run_t": rec.t, "run_q": rec.q, "run_tip_m": rec.tip}
     else:
         log.info("animate %s: no run log at %s: rendering the planned trajectory (run the "

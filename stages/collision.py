@@ -44,7 +44,8 @@ def main(cfg: Config, out: Outputs) -> None:
         print(json.dumps(report.to_json(margin, model.geometry), allow_nan=False), flush=True)
         return
     name = artwork_name(cfg.artwork)
-    src = TrajectoryRecord.require(out.data, name=name)
+    src = out.require(out.input(*TrajectoryRecord.path("", name=name).parts),
+                      "trajectory")
     traj = load_trajectory(src)
     model = CollisionModel(desc)
     rep = check_trajectory(model, traj.t, traj.q, margin_m=margin,

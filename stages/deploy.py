@@ -30,7 +30,8 @@ log = logging.getLogger("tattotronix.deploy")
 def main(cfg: Config, out: Outputs) -> None:
     """Compile the program of one artwork and write it with its metrics."""
     name = artwork_name(cfg.artwork)
-    src = TrajectoryRecord.require(out.data, name=name)
+    src = out.require(out.input(*TrajectoryRecord.path("", name=name).parts),
+                      "trajectory")
     require_checked(out.input("metrics", "collision", f"{name}.json"), src)
     traj = load_trajectory(src)
     desc = build_description(cfg.robot)

@@ -28,7 +28,7 @@ def main(cfg: Config, out: Outputs) -> None:
     name = artwork_name(cfg.artwork)
     desc = build_description(cfg.robot)
     urdf = out.require(out.input("robot", f"{desc.name}.urdf"), "robot")
-    src = ToolpathRecord.require(out.data, name=name)
+    src = out.require(out.input(*ToolpathRecord.path("", name=name).parts), "toolpath")
     tpr = ToolpathRecord.load(src)
     path = {"uvz_mm": tpr.uvz_mm, "xyz_m": tpr.xyz_m, "kind": tpr.kind, "stroke": tpr.stroke}
     ik = cfg.ik

@@ -53,7 +53,7 @@ def main(cfg: Config, out: Outputs) -> None:
     """Run the study on one artwork's solved path; write the metrics and four figures."""
     name = artwork_name(cfg.artwork)
     desc = build_description(cfg.robot)
-    src = IkRecord.require(out.data, name=name)
+    src = out.require(out.input(*IkRecord.path("", name=name).parts), "ik")
     chain = Chain.from_description(desc)
     ik = _load_ik(src, chain.n)
     ikc = cfg.ik

@@ -27,7 +27,7 @@ log = logging.getLogger("tattotronix.trajectory")
 def main(cfg: Config, out: Outputs) -> None:
     """Plan the trajectory of one artwork and write it with its metrics."""
     name = artwork_name(cfg.artwork)
-    src = IkRecord.require(out.data, name=name)
+    src = out.require(out.input(*IkRecord.path("", name=name).parts), "ik")
     desc = build_description(cfg.robot)
     urdf = out.require(out.input("robot", f"{desc.name}.urdf"), "robot")
     path = JointPath.from_npz(src)

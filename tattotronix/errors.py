@@ -22,12 +22,22 @@ class ConfigError(TattotronixError, ValueError):
 
 
 class StageInputMissing(TattotronixError):
-    """A stage's input does not exist yet; the message names the stage to run first."""
+    """A stage's input does not exist yet; the message names the command to run first.
 
-    def __init__(self, path: Path, stage: str):
+    Args:
+        path: the missing input (under ``paths.data``).
+        stage: the stage that writes it (its script is ``stages/<stage>.py``).
+        command: the command that writes it with the current run's overrides
+            (``python stages/artwork.py artwork.source=my.png``); the bare script if None.
+        also: where a run by hand would have written it, also looked at.
+    """
+
+    def __init__(self, path: Path, stage: str, command: str | None = None,
+                 also: Path | None = None):
+        where = f"{path}" if also is None else f"{path} (nor {also}, where runs by hand write)"
         super().__init__(
-            f"missing input {path}: run the '{stage}' stage first "
-            f"(python stages/{stage}.py, or dvc repro)"
+            f"missing input {where}: run the '{stage}' stage first: "
+            f"{command or f'python stages/{stage}.py'} (or dvc repro)"
         )
 
 

@@ -99,3 +99,77 @@ def test_hand_runs_and_sweeps_leave_the_pipeline_alone(project: Path) -> None:
     mine = _run(project, "stages/robot.py", "paths.out=data", "robot.mass_model=box")
     assert mine.returncode == 0, mine.stderr
     assert _tree(project / PIPELINE_DATA) != before  # the explicit choice does write there
+
+
+def test_inputs_come_from_the_runs_by_hand_first(tmp_path: Path,
+                                                 caplog: pytest.LogCaptureFixture) -> None:
+    """A sweep job reads its own folder's file, then the runs' folder's, then paths.data's,
+    and says once which file a run by hand wrote."""
+    data, runs = tmp_path / "data", tmp_path / "runs"
+    job = runs / "sweeps" / "mask.res_mm=0.1"
+    for folder in (data, runs, job):
+        (folder / "mask").mkdir(parents=True)
+        (folder / "mask" / "a.npz").write_text(folder.name)
+    (data / "mask" / "b.npz").write_text("data")
+    (runs / "mask" / "b.npz").write_text("runs")
+    (data / "mask" / "c.npz").write_text("data")
+    out = Outputs(data, ["mask.res_mm=0.1"], root=runs)
+    with caplog.at_level("INFO", logger="tattotronix"):
+        assert out.input("mask", "a.npz") == job / "mask" / "a.npz"
+        assert out.input("mask/a.npz") == job / "mask" / "a.npz"
+        assert out.input("mask", "b.npz") == runs / "mask" / "b.npz"
+        assert out.input("mask", "c.npz") == data / "mask" / "c.npz"
+        assert out.input_root("mask", "b.npz") == runs
+        assert out.input("mask", "d.npz") == data / "mask" / "d.npz"  # none: paths.data's
+    said = [r.getMessage() for r in caplog.records]
+    assert sum("a.npz, which a run by hand wrote" in m for m in said) == 1, said
+    assert sum("b.npz, which a run by hand wrote" in m for m in said) == 1, said
+    assert not any("c.npz" in m for m in said), said
+    # inside a DVC stage the run writes where it reads: paths.data only
+    dvc = Outputs(data, root=data)
+    assert dvc.input("mask", "b.npz") == data / "mask" / "b.npz"
+
+
+def test_stages_run_by_hand_chain(project: Path, tmp_path: Path) -> None:
+    """artwork -> mask -> toolpath by hand on a PNG of the user's own: each reads what the
+    one before wrote under runs/, says so, and data/ stays empty."""
+    from .conftest import small_art
+
+    png = small_art(tmp_path / "my.png")
+    args = (f"artwork.source={png}", "mask.width_mm=24")
+    for stage in ("artwork", "mask", "toolpath"):
+        run = _run(project, f"stages/{stage}.py", *args)
+        assert run.returncode == 0, run.stderr
+        said = run.stdout + run.stderr
+        if stage == "mask":
+            assert "reading runs/artwork/my.png, which a run by hand wrote" in said, said
+        if stage == "toolpath":
+            assert "reading runs/mask/my.npz, which a run by hand wrote" in said, said
+    runs = _tree(project / HAND_RUNS)
+    for made in ("artwork/my.png", "mask/my.npz", "toolpath/my.npz",
+                 "metrics/toolpath/my.json"):
+        assert made in runs, sorted(runs)
+    assert _tree(project / PIPELINE_DATA) == {}
+
+
+def test_a_missing_input_names_the_command_that_makes_it(project: Path,
+                                                         tmp_path: Path) -> None:
+    """The mask stage without its artwork names the artwork command with the run's own
+    overrides; that command writes the input it lacked."""
+    import shlex
+
+    from .conftest import small_art
+
+    png = small_art(tmp_path / "my logo.png")  # a space: the command quotes it
+    args = (f"artwork.source={png}", "mask.width_mm=24")
+    missing = _run(project, "stages/mask.py", *args)
+    assert missing.returncode == 2, missing.stdout + missing.stderr
+    command = "python stages/artwork.py " + " ".join(shlex.quote(a) for a in args)
+    line = missing.stderr.strip().splitlines()[-1]
+    assert line == (f"mask: error: missing input data/artwork/my logo.png (nor runs/artwork/my "
+                    f"logo.png, where runs by hand write): run the 'artwork' stage first: "
+                    f"{command} (or dvc repro)"), line
+    fix = shlex.split(command)  # the command as a shell splits it: the artwork run's own
+    assert fix[1:] == ["stages/artwork.py", *args]
+    assert _run(project, *fix[1:]).returncode == 0
+    assert (project / HAND_RUNS / "artwork" / "my logo.png").is_file()

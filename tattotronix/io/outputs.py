@@ -1,9 +1,11 @@
 """Atomic stage outputs: every file a stage writes lands together, or not at all.
 
-Where a run writes is not always where it reads. Every run reads its inputs under
-``paths.data``; ``dvc repro`` writes there too, but a run by hand (``python stages/...``,
-a ``-m`` sweep, a notebook) whose ``paths.data`` is the pipeline's own folder writes under
-``runs/`` beside it instead, so it never changes what DVC tracks (:func:`write_root`).
+Where a run writes is not always where it reads. ``dvc repro`` reads and writes under
+``paths.data``, but a run by hand (``python stages/...``, a ``-m`` sweep, a notebook)
+whose ``paths.data`` is the pipeline's own folder writes under ``runs/`` beside it
+instead, so it never changes what DVC tracks (:func:`write_root`). A run by hand reads
+what the runs by hand wrote first, then ``paths.data`` (:meth:`Outputs.input`), so stages
+run by hand one after another chain.
 
 The jobs of a ``-m`` sweep run side by side with the same outputs in mind, so each job
 writes under a folder of its own, ``sweeps/<its overrides>/`` under that root
@@ -18,7 +20,9 @@ import json
 import logging
 import math
 import os
+import shlex
 import shutil
+import sys
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
@@ -79,10 +83,11 @@ class Outputs:
     """Where a stage writes, with every file written atomically as one transaction.
 
     ``data`` is where the run reads (``paths.data``); ``root`` is where it writes
-    (:func:`write_root`). :meth:`path` and the writers are under ``root``; read inputs
-    under ``data``. A job of a ``-m`` sweep (``sweep_overrides`` given) writes under a
-    folder of its own instead, ``<root>/sweeps/<its overrides>/``, unless its stage names
-    the job's files itself (:meth:`sweep_suffix`).
+    (:func:`write_root`). :meth:`path` and the writers are under ``root``; inputs are read
+    with :meth:`input`: what a run by hand wrote under ``root``, else under ``data``. A job
+    of a ``-m`` sweep (``sweep_overrides`` given) writes under a folder of its own
+    instead, ``<root>/sweeps/<its overrides>/``, unless its stage names the job's files
+    itself (:meth:`sweep_suffix`).
 
     Files go to temporary names next to their targets; only when the stage body returns
     are they renamed into place. A stage interrupted half-way leaves nothing that looks
@@ -90,9 +95,13 @@ class Outputs:
     """
 
     def __init__(self, data: str | Path, sweep_overrides: list[str] | None = None,
-                 root: str | Path | None = None):
+                 root: str | Path | None = None, overrides: Sequence[str] | None = None):
         #: where the run reads its inputs (``paths.data``)
         self.data = Path(data)
+        #: the run's command-line overrides, for the command a missing input names
+        #: (:meth:`rerun_command`); None: Hydra's, else the command line's under DVC
+        self.overrides = list(overrides) if overrides is not None else None
+        self._hand_reads: set[Path] = set()  # inputs read from a run by hand (logged once)
         #: where runs write (``root`` if given, else :func:`write_root` of ``data``)
         self.shared_root = Path(root) if root is not None else write_root(self.data)
         #: in a Hydra multirun, this job's overrides (``key=value``); None otherwise
@@ -147,14 +156,78 @@ class Outputs:
         """A path to write, under :attr:`root`."""
         return self.root.joinpath(*parts)
 
+    def _hand_roots(self) -> list[Path]:
+        """Where a run by hand's outputs are looked for before ``paths.data``: this run's
+        own folder (a sweep job's), then where the runs write (:attr:`shared_root`);
+        neither when it is ``paths.data`` itself (inside a DVC stage)."""
+        roots: list[Path] = []
+        for folder in (self.root, self.shared_root):
+            if all(folder.resolve() != r.resolve() for r in (self.data, *roots)):
+                roots.append(folder)
+        return roots
+
     def input(self, *parts: str) -> Path:
-        """A path to read, under ``paths.data``."""
+        """A path to read: what a run by hand wrote there, else the one under ``paths.data``.
+
+        A run by hand writes under :attr:`root` (``runs/``, or a sweep job's folder in it),
+        so the next stage run by hand reads it there first (``python stages/artwork.py
+        artwork.source=my.png`` then ``python stages/mask.py artwork.source=my.png``
+        chain). Each file read from a run by hand is logged once. Inside a DVC stage, and
+        for a ``paths.data`` of the user's own, the run writes where it reads, so this is
+        ``paths.data`` joined with ``parts``.
+
+        Args:
+            parts: the path under ``paths.data`` (``"artwork", "emblem.png"``, or one
+                ``/``-separated string).
+
+        Returns:
+            The first that exists of the run's own folder's, :attr:`shared_root`'s and
+            ``paths.data``'s; ``paths.data``'s when none does (for :meth:`require`).
+        """
+        for folder in self._hand_roots():
+            path = folder.joinpath(*parts)
+            if path.exists():
+                if path not in self._hand_reads:
+                    self._hand_reads.add(path)
+                    log.info("reading %s, which a run by hand wrote (not %s)", _shown(path),
+                             _shown(self.data.joinpath(*parts)))
+                return path
         return self.data.joinpath(*parts)
 
+    def input_root(self, *parts: str) -> Path:
+        """The folder :meth:`input` reads ``parts`` under (``runs/``, a sweep job's folder
+        or ``paths.data``), for readers that take a data folder (``XRecord.load(root,
+        ...)``).
+
+        Args:
+            parts: the path under ``paths.data``, as for :meth:`input`.
+        """
+        path = self.input(*parts)
+        rel = Path(*parts)
+        return Path(*path.parts[:len(path.parts) - len(rel.parts)])
+
+    def rerun_command(self, stage: str) -> str:
+        """The command that runs ``stage`` with this run's overrides (``python
+        stages/artwork.py artwork.source=my.png``): what makes an input it lacks."""
+        overrides = self.overrides if self.overrides is not None else _run_overrides()
+        return " ".join(["python", f"stages/{stage}.py", *(shlex.quote(o) for o in overrides)])
+
     def require(self, path: Path, stage: str) -> Path:
-        """Return ``path`` if it exists, else stop naming the stage that makes it."""
+        """Return ``path`` if it exists, else stop naming the command that makes it.
+
+        Args:
+            path: the input (from :meth:`input`).
+            stage: the stage that writes it (its script is ``stages/<stage>.py``).
+
+        Raises:
+            StageInputMissing: ``path`` does not exist; the message names the command that
+                writes it, with this run's overrides (:meth:`rerun_command`).
+        """
         if not path.exists():
-            raise StageInputMissing(path, stage)
+            also = None
+            if self._hand_roots() and path.is_relative_to(self.data):
+                also = self.shared_root / path.relative_to(self.data)
+            raise StageInputMissing(path, stage, self.rerun_command(stage), also)
         return path
 
     def _tmp(self, target: Path) -> Path:
@@ -256,6 +329,21 @@ class Outputs:
             self.abort()
             raise
         self.commit()
+
+
+def _run_overrides() -> list[str]:
+    """This run's command-line overrides: Hydra's (a run by hand, a sweep job's own), else
+    the command line's inside a DVC stage; none in a notebook."""
+    try:
+        from hydra.core.hydra_config import HydraConfig
+
+        if HydraConfig.initialized():
+            return [str(o) for o in HydraConfig.get().overrides.task]
+    except (ImportError, ValueError):  # pragma: no cover - hydra is a dependency
+        pass
+    if os.environ.get("DVC_STAGE"):
+        return [a for a in sys.argv[1:] if "=" in a]
+    return []
 
 
 def _shown(path: Path) -> str:
