@@ -14,7 +14,9 @@ per pixel, with the source's aspect ratio (docs/original.md, "2.1 Artwork and ma
   byte-order mark, says which). It must be self-contained: a reference to another file or
   to the network (``<image href="photo.png">``, ``url(http://...)``, ``@import``) is
   refused, naming it, unless ``artwork.svg_local_files`` allows files in the SVG's own
-  folder; embedded ``data:`` images and ``#id`` references are always fine.
+  folder; embedded ``data:`` images and ``#id`` references are always fine. ``<text>``
+  is drawn with the system's fonts for a family it names, and with DejaVu (shipped with
+  matplotlib, so always there) for a generic or missing one; the log names the text.
 
 Every way an input can be unusable ends in a one-line :class:`TattotronixError` that says
 what was wrong and what to do: a missing or unsupported file, a corrupt or truncated
@@ -483,6 +485,40 @@ def _check_svg_refs(text: str, path: Path, label: str, local_files: bool) -> Non
                            f"{listed}; {fix}")
 
 
+TEXT_FONTS: tuple[str, str, str] = ("DejaVu Sans", "DejaVu Serif", "DejaVu Sans Mono")
+"""The fonts resvg draws ``<text>`` with when it names no family or sans-serif, serif,
+monospace (resvg's own defaults, Arial, Times New Roman and Courier New, are on few Linux
+machines)."""
+
+_SHOWN_TEXTS = 5  # <text> elements named in the log
+
+
+def _dejavu_files() -> list[str]:
+    """The DejaVu fonts matplotlib ships: always there, so ``<text>`` is drawn on a machine
+    with no system fonts too (resvg draws nothing for text it has no font for)."""
+    import matplotlib
+
+    folder = Path(matplotlib.get_data_path()) / "fonts" / "ttf"
+    return sorted(str(f) for f in folder.glob("DejaVu*.ttf"))
+
+
+def _log_text(text: str, label: str) -> bool:
+    """Whether an SVG has ``<text>``, which resvg draws with the system's fonts for a family
+    it names, else DejaVu (:data:`TEXT_FONTS`, :func:`_dejavu_files`); the log
+    names the elements, as they are drawn with this machine's fonts."""
+    texts = [el for el in _parse_svg(text, label).iter()
+             if isinstance(el.tag, str) and el.tag.rsplit("}", 1)[-1] == "text"]
+    if not texts:
+        return False
+    ids = [el.get("id") or f"'{''.join(el.itertext()).strip()[:20]}'" for el in texts]
+    shown = ", ".join(ids[:_SHOWN_TEXTS]) + (
+        f" and {len(ids) - _SHOWN_TEXTS} more" if len(ids) > _SHOWN_TEXTS else "")
+    log.info("%s: %d <text> element(s) (%s) drawn with this machine's fonts (DejaVu for "
+             "a generic or unnamed family); for the designed letter shapes convert text to "
+             "paths (Inkscape: Path > Object to Path)", label, len(texts), shown)
+    return True
+
+
 def _render_svg(
     path: Path, width_mm: float, res_mm: float, max_pixels: int, local_files: bool = False
 ) -> tuple[NDArray[np.float64], tuple[int, int], tuple[int, int]]:
@@ -501,10 +537,15 @@ def _render_svg(
         render_w, render_h, max_pixels,
         "check its width/height/viewBox, or raise artwork.max_pixels",
     )
+    has_text = _log_text(text, label)
+    sans, serif, mono = TEXT_FONTS if has_text else (None, None, None)
     try:
         png = resvg_py.svg_to_bytes(
             svg_string=text, width=render_w, dpi=CSS_DPI,
             resources_dir=str(path.parent) if local_files else None,
+            font_files=_dejavu_files() if has_text else None,
+            font_family=sans, sans_serif_family=sans, serif_family=serif,
+            monospace_family=mono,
         )
     except (ValueError, RuntimeError, OSError) as exc:
         raise TattotronixError(
