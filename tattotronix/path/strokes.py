@@ -254,7 +254,8 @@ def compensated_drawing(mask: InkMask, labels: NDArray[np.int32], regions: list[
                         params: ToolpathParams, vector: VectorLines | None = None) -> Drawing:
     """The strokes of the regions for a needle of finite width (:mod:`tattotronix.path.inset`):
     per region its inset's outer and hole outlines, its centreline strokes, then its fill
-    inside the inset (hatch runs, or concentric rings); regions in the original's order.
+    (hatch runs in the fill area, a needle inside the inset's edge, or concentric rings in
+    the inset); regions in the original's order.
 
     Args:
         mask: the ink mask.
@@ -271,7 +272,7 @@ def compensated_drawing(mask: InkMask, labels: NDArray[np.int32], regions: list[
     if params.fill_style == "concentric":
         rings = concentric_rings(comp, params.pitch_mm, params.min_loop_px)
     else:
-        fill = fill_regions(comp.inset, grid.xs, grid.ys, grid.res_mm, params.fill_pitch_mm,
+        fill = fill_regions(comp.fill, grid.xs, grid.ys, grid.res_mm, params.fill_pitch_mm,
                             params.fill_angle_deg, params.fill_style, inset_px=0)
     fill_ab = np.stack([fill.a_mm, fill.b_mm], axis=1)
     strokes: list[Stroke] = []
