@@ -11,13 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tattotronix.art.artwork import artwork_grid, load_artwork
+from tattotronix.art.artwork import artwork_grid, load_artwork, svg_physical_width_mm
 from tattotronix.art.sizing import (
     PITCH_LADDER,
     Stroke,
     drawing_width_mm,
     grid_pitch_mm,
-    physical_width_mm,
 )
 from tattotronix.config.schema import MaskConfig
 from tattotronix.errors import TattotronixError
@@ -111,16 +110,19 @@ def test_the_pitch_is_the_coarsest_of_the_ladder_that_gives_the_thinnest_line_it
 
 
 def test_physical_width_and_the_fallbacks():
-    assert physical_width_mm("25.4mm") == pytest.approx(25.4)
-    assert physical_width_mm("1in") == pytest.approx(25.4)
-    assert physical_width_mm("72pt") == pytest.approx(25.4)
+    def own(width: str | None) -> float | None:
+        attr = "" if width is None else f' width="{width}"'
+        return svg_physical_width_mm(f'<svg xmlns="http://www.w3.org/2000/svg"{attr}/>')
+
+    for width in ("25.4mm", "2.54cm", "1in", "72pt", "6pc"):
+        assert own(width) == pytest.approx(25.4), width
     for other in (None, "100", "100px", "50%", "wide", "-3mm"):
-        assert physical_width_mm(other) is None
-    assert drawing_width_mm(80.0, 150.0, "10mm") == 80.0
-    assert drawing_width_mm(None, 150.0, "10mm") == pytest.approx(10.0)
-    assert drawing_width_mm(None, 150.0, "10") == 150.0
+        assert own(other) is None, other
+    assert drawing_width_mm(80.0, 150.0, 10.0) == 80.0
+    assert drawing_width_mm(None, 150.0, 10.0) == 10.0
+    assert drawing_width_mm(None, 150.0, None) == 150.0
     with pytest.raises(TattotronixError, match="set mask.width_mm"):
-        drawing_width_mm(None, None, "10")
+        drawing_width_mm(None, None, None)
 
 
 def test_the_mask_reads_the_grid_the_artwork_stage_chose(tmp_path):

@@ -61,6 +61,7 @@ __all__ = [
     "resolve_source",
     "svg_external_refs",
     "svg_intrinsic_size",
+    "svg_physical_width_mm",
 ]
 
 log = logging.getLogger(__name__)
@@ -97,6 +98,7 @@ _SVG_UNITS_PX = {
     "pt": CSS_DPI / 72.0,
     "pc": CSS_DPI / 6.0,
 }
+_PHYSICAL_UNITS = ("in", "cm", "mm", "pt", "pc")
 _SVG_LENGTH = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([a-z%]*)\s*$")
 _SVG_DEFAULT_PX = 100.0  # resvg's size for an SVG with neither width/height nor viewBox
 _XML_DECL = re.compile(r"^\s*<\?xml\b[^>]*\?>")
@@ -334,6 +336,16 @@ def _svg_length(value: str | None) -> float | None:
     return v if v > 0 and math.isfinite(v) else None
 
 
+def svg_physical_width_mm(text: str, label: str = "SVG") -> float | None:
+    """The width an SVG declares in a physical unit (mm, cm, in, pt, pc), mm; None when
+    its ``width`` is missing, relative, in px or unitless."""
+    m = _SVG_LENGTH.match(_parse_svg(text, label).get("width") or "")
+    if not m or m.group(2) not in _PHYSICAL_UNITS:
+        return None
+    px = _svg_length(m.group(0))
+    return None if px is None else px * 25.4 / CSS_DPI
+
+
 def _parse_svg(text: str, label: str) -> ET.Element:
     """The SVG's XML root; a parse error is refused naming ``label``."""
     try:
@@ -561,7 +573,7 @@ def _svg_grid(path: Path, label: str, width_mm: float | None, default_width_mm: 
               res_mm: float, min_line_px: float) -> tuple[float, float]:
     """The drawn width and the grid pitch of an SVG, mm (:mod:`tattotronix.art.sizing`)."""
     text = read_svg(path, label)
-    width = drawing_width_mm(width_mm, default_width_mm, _parse_svg(text, label).get("width"))
+    width = drawing_width_mm(width_mm, default_width_mm, svg_physical_width_mm(text, label))
     if min_line_px <= 0:
         return width, res_mm
     strokes = svg_strokes(path, width / svg_intrinsic_size(text, label)[0])

@@ -13,7 +13,6 @@
 from __future__ import annotations
 
 import logging
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -28,11 +27,8 @@ log = logging.getLogger(__name__)
 #: halves, so grids stay aligned with the millimetre)
 PITCH_LADDER = (0.25, 0.2, 0.125, 0.1, 0.08, 0.0625, 0.05, 0.04, 0.025, 0.02)
 
-#: SVG units with a physical size, in CSS px per unit
-_PHYSICAL_PX = {"mm": 96 / 25.4, "cm": 96 / 2.54, "in": 96.0, "pt": 96 / 72, "pc": 16.0}
 #: 0.3 mm over 0.1 mm is 2.9999999999999996 in floating point: counted as 3
 _ROUNDING = 1 + 1e-9
-_LENGTH = re.compile(r"^\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*([a-z%]*)\s*$")
 
 
 @dataclass(frozen=True)
@@ -44,30 +40,19 @@ class Stroke:
     width_mm: float
 
 
-def physical_width_mm(svg_root_width: str | None) -> float | None:
-    """The width an SVG's ``width`` attribute gives in mm, when its unit is physical."""
-    if svg_root_width is None:
-        return None
-    m = _LENGTH.match(svg_root_width)
-    if not m or m.group(2) not in _PHYSICAL_PX:
-        return None
-    mm = float(m.group(1)) * _PHYSICAL_PX[m.group(2)] * 25.4 / 96
-    return mm if mm > 0 else None
-
-
 def drawing_width_mm(width_mm: float | None, default_width_mm: float | None,
-                     svg_width_attr: str | None = None) -> float:
-    """How wide the drawing is, mm: ``width_mm`` when set; else the SVG's physical width
-    (``svg_width_attr``, its root's ``width``); else ``default_width_mm``.
+                     own_mm: float | None = None) -> float:
+    """How wide the drawing is, mm: ``width_mm`` when set; else the artwork's own physical
+    width ``own_mm`` (an SVG's, :func:`tattotronix.art.artwork.svg_physical_width_mm`);
+    else ``default_width_mm``.
 
     Raises:
         TattotronixError: no width at all (neither is set and the SVG has none).
     """
     if width_mm is not None:
         return float(width_mm)
-    own = physical_width_mm(svg_width_attr)
-    if own is not None:
-        return own
+    if own_mm is not None:
+        return float(own_mm)
     if default_width_mm is None:
         raise TattotronixError("the artwork has no physical size: set mask.width_mm")
     return float(default_width_mm)
