@@ -224,9 +224,12 @@ def plan_figures(art: Art) -> dict[str, float | int | str | None]:
 
 def sim_figures(art: Art, folder: Path) -> dict[str, float | int | str | None]:
     """Simulate the whole drawing on MuJoCo (``stages/draw.py``); its figures."""
+    from tattotronix.art.artwork import resolve_source
+
     out_dir = folder / f"sim-{art.name}"
+    # a file, not a built-in's name: draw.py plans it in memory under the drawing's name
     cmd = [sys.executable, str(ROOT / "stages" / "draw.py"), "backend=mujoco",
-           f"artwork.source={art.source}", f"artwork.name={art.name}",
+           f"artwork.source={resolve_source(art.source)}", f"artwork.name={art.name}",
            f"paths.out={out_dir}", "draw.progress=false", *art.overrides]
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)

@@ -64,6 +64,7 @@ def main(cfg: Config, out: Outputs) -> None:
             "height_mm": height_mm,
             "ink_fraction": float(ink.mean()),
             "vector_lines": len(lines.paths),
+            "transparent": art.transparent,
         },
     )
     log.info("artwork %s: %s (%.1f x %.1f mm, ink ~%.1f %%)", name, png, width_mm,

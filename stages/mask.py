@@ -41,16 +41,16 @@ def main(cfg: Config, out: Outputs) -> None:
             f"cannot read {src} ({type(exc).__name__}: {' '.join(str(exc).split())}); "
             "re-run the 'artwork' stage"
         ) from None
-    res_mm = artwork_grid(out.require(out.input("metrics", "artwork", f"{name}.json"),
-                                      "artwork"), grey.shape)
+    grid = artwork_grid(out.require(out.input("metrics", "artwork", f"{name}.json"),
+                                    "artwork"), grey.shape)
     mask, stats = make_mask(
         grey,
-        res_mm,
+        grid.res_mm,
         cfg.mask.method,
         cfg.mask.min_region_mm2,
         edge_sigma_px=cfg.mask.edge_sigma_px,
         edge_k=cfg.mask.edge_k,
-        auto_invert=cfg.mask.auto_invert,
+        auto_invert=cfg.mask.auto_invert and not grid.transparent,
     )
     npz = out.path("mask", f"{name}.npz")
     mask.save(out.tmp_path(npz), make_provenance(cfg, {"artwork": src}))

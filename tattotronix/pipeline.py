@@ -107,7 +107,7 @@ def mask_of(cfg: Config, source: str | Path | None, name: str) -> InkMask:
     grey = art.as_uint8().astype(np.float64)  # what the artwork stage's PNG holds
     mask, _ = make_mask(grey, art.res_mm, m.method, m.min_region_mm2,
                         edge_sigma_px=m.edge_sigma_px, edge_k=m.edge_k,
-                        auto_invert=m.auto_invert)
+                        auto_invert=m.auto_invert and not art.transparent)
     return mask
 
 

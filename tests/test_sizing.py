@@ -11,7 +11,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tattotronix.art.artwork import artwork_grid, load_artwork, svg_physical_width_mm
+from tattotronix.art.artwork import (
+    ArtworkGrid,
+    artwork_grid,
+    load_artwork,
+    svg_physical_width_mm,
+)
 from tattotronix.art.sizing import (
     PITCH_LADDER,
     Stroke,
@@ -128,9 +133,36 @@ def test_physical_width_and_the_fallbacks():
 def test_the_mask_reads_the_grid_the_artwork_stage_chose(tmp_path):
     metrics = tmp_path / "art.json"
     metrics.write_text(json.dumps({"res_mm": 0.125, "raster_px": [960, 480]}))
-    assert artwork_grid(metrics, (480, 960)) == 0.125
+    assert artwork_grid(metrics, (480, 960)) == ArtworkGrid(0.125, transparent=False)
+    metrics.write_text(json.dumps({"res_mm": 0.125, "raster_px": [960, 480],
+                                   "transparent": True}))
+    assert artwork_grid(metrics, (480, 960)).transparent
     with pytest.raises(TattotronixError, match="re-run the 'artwork' stage"):
         artwork_grid(metrics, (240, 480))
     metrics.write_text("{")
     with pytest.raises(TattotronixError, match="cannot read the artwork's grid"):
         artwork_grid(metrics, (480, 960))
+
+
+def test_strokes_over_half_a_transparent_canvas_are_the_ink_not_the_gaps(tmp_path):
+    """A 10,000-path SVG whose strokes cover most of its (transparent) canvas was inverted,
+    as light art on a dark field is: the mask drew the gaps between the strokes, and the
+    vector lines (the strokes) measured as bleed. A transparent canvas is never inverted;
+    an opaque dark field still is."""
+    from tattotronix.config.params import compose_settings
+    from tattotronix.pipeline import mask_of
+
+    def bars(width: float) -> str:
+        return "".join(f'<rect x="{x}" y="2" width="{width}" height="36"/>'
+                       for x in range(2, 60, 4))
+
+    # black bars over 3/4 of a transparent canvas; white bars on an opaque dark field
+    for body in (f'<g fill="black">{bars(3)}</g>',
+                 f'<rect width="60" height="40" fill="#222"/><g fill="white">{bars(1)}</g>'):
+        svg = tmp_path / "bars.svg"
+        svg.write_text(f'<svg xmlns="http://www.w3.org/2000/svg" width="60mm" height="40mm" '
+                       f'viewBox="0 0 60 40">{body}</svg>')
+        ink = mask_of(compose_settings([f"artwork.source={svg}"]), svg, "bars").ink
+        h, w = ink.shape
+        assert ink[h // 2, round(2.5 / 60 * w)], body  # the first bar is the ink
+        assert not ink[h // 2, round(5.5 / 60 * w)], body  # the first gap is not

@@ -49,6 +49,7 @@ from tattotronix.errors import TattotronixError
 __all__ = [
     "ASSETS_DIR",
     "Artwork",
+    "ArtworkGrid",
     "BUILTINS",
     "artwork_grid",
     "DEFAULT_ARTWORK",
@@ -122,6 +123,9 @@ class Artwork:
         original_px: (width, height) of the source in its own pixels (for SVG, its
             intrinsic size in CSS pixels, rounded).
         render_px: (width, height) of the intermediate SVG rendering, or None.
+        transparent: some of its canvas is fully transparent (an SVG's usually is): its
+            ink is what is drawn on it, so the mask never draws the light side instead
+            (``mask.auto_invert`` is for light art on an opaque dark field).
     """
 
     grey: NDArray[np.float64]
@@ -131,6 +135,7 @@ class Artwork:
     kind: str
     original_px: tuple[int, int]
     render_px: tuple[int, int] | None = None
+    transparent: bool = False
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -265,6 +270,13 @@ def _one_line(exc: BaseException) -> str:
 
 
 # ----------------------------------------------------------------------------- decoding
+
+
+def _has_transparency(im: Image.Image) -> bool:
+    """Whether any pixel of the image is fully transparent."""
+    if im.mode not in ("RGBA", "LA", "PA", "La", "RGBa", "P") and "transparency" not in im.info:
+        return False
+    return bool(im.convert("RGBA").getextrema()[3][0] == 0)
 
 
 def _to_grey(im: Image.Image) -> NDArray[np.float64]:
@@ -533,8 +545,9 @@ def _log_text(text: str, label: str) -> bool:
 
 def _render_svg(
     path: Path, width_mm: float, res_mm: float, max_pixels: int, local_files: bool = False
-) -> tuple[NDArray[np.float64], tuple[int, int], tuple[int, int]]:
-    """Render an SVG at :data:`SVG_OVERSAMPLE` x the grid, average down to the grid."""
+) -> tuple[NDArray[np.float64], tuple[int, int], tuple[int, int], bool]:
+    """Render an SVG at :data:`SVG_OVERSAMPLE` x the grid, average down to the grid; and
+    whether its canvas is transparent anywhere."""
     import resvg_py
 
     label = f"artwork {path}"
@@ -566,7 +579,8 @@ def _render_svg(
     im, _ = _open_raster(io.BytesIO(bytes(png)), f"{label} (rendered)", max_pixels)
     hi = _to_grey(im)
     grey = cv2.resize(hi.astype(np.float32), (out_w, out_h), interpolation=cv2.INTER_AREA)
-    return grey.astype(np.float64), (round(size[0]), round(size[1])), (im.width, im.height)
+    return (grey.astype(np.float64), (round(size[0]), round(size[1])), (im.width, im.height),
+            _has_transparency(im))
 
 
 def _svg_grid(path: Path, label: str, width_mm: float | None, default_width_mm: float | None,
@@ -643,14 +657,15 @@ def load_artwork(
     if suffix in SVG_SUFFIXES:
         width_mm, res_mm = _svg_grid(path, label, width_mm, default_width_mm, res_mm,
                                      min_line_px)
-        grey, original_px, render_px = _render_svg(path, width_mm, res_mm, max_pixels,
-                                                   svg_local_files)
+        grey, original_px, render_px, transparent = _render_svg(
+            path, width_mm, res_mm, max_pixels, svg_local_files)
         kind = "svg"
     else:
         width_mm = drawing_width_mm(width_mm, default_width_mm)
         im, fmt = _open_raster(path, label, max_pixels)
         kind = fmt or suffix.lstrip(".")
         original_px, render_px = (im.width, im.height), None
+        transparent = _has_transparency(im)
         out_h, out_w = grid_shape(original_px, width_mm, res_mm)
         _check_pixels(
             f"the grid for {label} ({width_mm:g} mm at {res_mm:g} mm/px)",
@@ -671,6 +686,7 @@ def load_artwork(
         kind=kind,
         original_px=original_px,
         render_px=render_px,
+        transparent=transparent,
     )
     w_mm, h_mm = art.size_mm
     log.info(
@@ -680,9 +696,21 @@ def load_artwork(
     return art
 
 
-def artwork_grid(metrics: Path, shape: tuple[int, ...]) -> float:
-    """The grid pitch (mm) the artwork stage chose for a raster of ``shape``, read from its
-    metrics file (``res_mm`` and ``raster_px``): the one record of the drawing's size.
+@dataclass(frozen=True)
+class ArtworkGrid:
+    """What the mask stage needs of the artwork stage's choices (its metrics file).
+
+    Attributes:
+        res_mm: the grid pitch, mm. transparent: :attr:`Artwork.transparent`.
+    """
+
+    res_mm: float
+    transparent: bool
+
+
+def artwork_grid(metrics: Path, shape: tuple[int, ...]) -> ArtworkGrid:
+    """The grid the artwork stage chose for a raster of ``shape``, read from its metrics
+    file (``res_mm``, ``raster_px`` and ``transparent``): the one record of it.
 
     Raises:
         TattotronixError: the metrics are unreadable or do not describe this raster (the
@@ -694,10 +722,11 @@ def artwork_grid(metrics: Path, shape: tuple[int, ...]) -> float:
     try:
         rec = json.loads(metrics.read_text(encoding="utf-8"))
         res_mm, (w, h) = float(rec["res_mm"]), rec["raster_px"]
+        transparent = bool(rec.get("transparent", False))
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise TattotronixError(f"cannot read the artwork's grid from {metrics} "
                                f"({_one_line(exc)}): {fix}") from None
     if (int(h), int(w)) != tuple(shape[:2]) or not res_mm > 0:
         raise TattotronixError(f"the artwork raster is {shape[1]} x {shape[0]} px but "
                                f"{metrics} records {w} x {h} px: {fix}")
-    return res_mm
+    return ArtworkGrid(res_mm, transparent)
