@@ -14,6 +14,8 @@ from tattotronix.path.params import ToolpathParams
 from tattotronix.path.path3d import MARK, build_path_flat
 from tattotronix.path.polyline import resample
 from tattotronix.path.turns import round_turns
+from tattotronix.trajectory import path_derivatives
+from tattotronix.trajectory.timelaw import JointLimits, TipLimit, time_parameterise
 
 PARAMS = ToolpathParams.from_config(ToolpathConfig(), MaskConfig(), PanelConfig())
 STEP, PITCH = PARAMS.step_mm, PARAMS.pitch_mm
@@ -101,3 +103,44 @@ def test_build_path_marks_through_the_turns() -> None:
     # no corner tighter than the half-pitch turn (the straight jogs have right angles)
     assert _curvature(mark).max() <= 1.0 / (PITCH / 2) * 1.01
     assert _curvature(straight.uvz_mm[straight.kind == MARK, :2]).max() > 5.0
+
+
+def _law(path_mm: np.ndarray, jerk: float | None) -> tuple[np.ndarray, float]:
+    """The time law of a marking polyline (mm) at the 6 mm/s feed under a 100 mm/s^2 tip
+    limit, through joints that are a gentle smooth map of the tip (no joint limit binds):
+    the speed at each point (m/s) and the duration over the marking-only time."""
+    p = np.column_stack([path_mm * 1e-3, np.zeros(len(path_mm))])
+    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))])
+    lin = np.array([[2.0, 0.5, 0.0], [-0.5, 2.0, 0.0], [1.0, 1.0, 1.0]])
+    q = p @ lin.T + 0.01 * np.sin(50.0 * p @ lin.T)
+    dq, d2q = path_derivatives(q, s)
+    dp, d2p = path_derivatives(p, s)
+    limits = JointLimits(("a", "b", "c"), np.full(3, 10.0), np.full(3, 100.0))
+    tip = TipLimit(dp, d2p, 0.1, np.ones(len(s) - 1, bool))
+    law = time_parameterise(s, dq, d2q, np.full(len(s), 0.006), limits, tip=tip,
+                            jerk_rad_s3=jerk)
+    return law.sdot, float(law.t[-1] / (s[-1] / 0.006))
+
+
+def test_the_feed_holds_through_a_turn_and_the_cycle_drops() -> None:
+    mask = _mask()
+    pts, bounds = _hatch(4, -5.0, 5.0)
+    rows = np.array([3.0 - i * PITCH for i in range(4)])
+    for jerk in (None, 500.0):
+        cycles = []
+        for turnable in (None, np.ones(3, bool)):
+            path = build_path_flat(pts, bounds, mask, PARAMS, turnable=turnable)
+            mark = path.uvz_mm[path.kind == MARK, :2]
+            speed, cycle = _law(mark, jerk)
+            cycles.append(cycle)
+            # away from the path's ends (rest to rest): at the feed through every turn
+            along = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(mark, axis=0),
+                                                                    axis=1))])
+            inner = (along > 2.0) & (along < along[-1] - 2.0)
+            off = np.abs(mark[:, 1, None] - rows[None, :]).min(axis=1) > 1e-6
+            if turnable is None:
+                assert speed[inner].min() < 0.5 * 0.006  # the straight jogs' corners
+            else:
+                assert (off & inner).sum() >= 3 * 10  # the turns' points
+                assert speed[inner].min() >= 0.95 * 0.006
+        assert cycles[1] < cycles[0] - 0.02

@@ -10,15 +10,18 @@ runs' spacing: at the marking feed of 6 mm/s and a pitch of 1.2 mm it needs
 antiparallel runs (fill rows) crossed with the needle down: each corner becomes an arc
 tangent to the run and to the jog, of radius ``radius_mm`` (half the pitch: two aligned
 runs are joined by a half circle) or less where the jog or the runs are too short for it
-(a staggered jog: its sharper corner needs a longer tangent). The runs are cut back by the
-arcs' tangent lengths; the turn stays inside the corner, so it gives up only the corner's
-sliver of ink. A turn is kept only when every chord of it stays in the area drags may
-cross (``on_ink``: the compensated drawing's drag mask); else the straight jog stays.
+(a staggered jog: its sharper corner would need a tangent longer than the radius). The
+runs are cut back by the arcs' tangent lengths; the turn stays inside the corner, so it
+gives up the corner's sliver of ink (the path is shorter: on the built-in emblem the
+coverage falls from 51.7 % to 50.0 %, while the cycle falls from 1.157 to 1.135). A turn
+is kept only when every chord of it stays in the area drags may cross (``on_ink``: the
+compensated drawing's drag mask); else the straight jog stays.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,12 +41,14 @@ ANTIPARALLEL_TOL = 2e-3
 STRAIGHT_TOL_MM = 1e-6
 #: the turns' largest radius, in pitches: half a pitch (0.6 mm at the default 1.2 mm) turns
 #: two aligned runs in a half circle, which needs 60 mm/s^2 at the 6 mm/s marking feed,
-#: under the tip's 100 mm/s^2; a staggered jog's fillets are made smaller to fit it
+#: under the tip's 100 mm/s^2; a staggered jog's fillets are made smaller, so that no
+#: tangent is longer than this radius
 TURN_RADIUS_PITCHES = 0.5
 #: a trimmed run keeps at least this share of a step, so no run shrinks to a point
 _MIN_RUN_STEPS = 1.0
 
 
+@dataclass(frozen=True)
 class Turns:
     """Round turns chosen for some gaps of an ordered drawing.
 
@@ -55,11 +60,9 @@ class Turns:
             excluded).
     """
 
-    def __init__(self, points: NDArray[np.float64], bounds: NDArray[np.intp],
-                 arcs: dict[int, NDArray[np.float64]]):
-        self.points = points
-        self.bounds = bounds
-        self.arcs = arcs
+    points: NDArray[np.float64]
+    bounds: NDArray[np.intp]
+    arcs: dict[int, NDArray[np.float64]]
 
 
 def fillet(vertex: NDArray[np.float64], u: NDArray[np.float64], w: NDArray[np.float64],
