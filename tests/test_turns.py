@@ -73,6 +73,14 @@ def test_turns_stay_on_the_drag_area_and_bound_the_curvature() -> None:
                                     rel_tol=1e-9)
 
 
+def test_staggered_ends_keep_their_jog_when_asked() -> None:
+    mask = _mask()
+    pts, bounds = _hatch(3, -5.0, 5.0, stagger=0.3)
+    assert round_turns(pts, bounds, np.ones(2, bool), mask, STEP, PITCH / 2, 0.15) is None
+    turns = round_turns(pts, bounds, np.ones(2, bool), mask, STEP, PITCH / 2, 0.5)
+    assert turns is not None and sorted(turns.arcs) == [0, 1]
+
+
 def test_no_turn_leaves_the_area() -> None:
     """Runs ending at the ink's edge: a turn that would leave the ink is refused."""
     mask = _mask(half_w=5.0)

@@ -27,7 +27,7 @@ from tattotronix.art.grid import InkMask
 from tattotronix.path.costs import SAME_POINT_MM, can_drag
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.polyline import resample_many
-from tattotronix.path.turns import TURN_RADIUS_PITCHES, round_turns
+from tattotronix.path.turns import TURN_MAX_STAGGER_MM, TURN_RADIUS_PITCHES, round_turns
 
 __all__ = ["APPROACH", "MARK", "TRAVEL", "Path3D", "build_path", "build_path_flat",
            "step_lengths"]
@@ -123,7 +123,8 @@ def build_path_flat(
     turns = None
     if turnable is not None and n > 1:
         turns = round_turns(pts, bounds, np.asarray(turnable, bool) & stay, mask,
-                            params.step_mm, TURN_RADIUS_PITCHES * params.pitch_mm)
+                            params.step_mm, TURN_RADIUS_PITCHES * params.pitch_mm,
+                            TURN_MAX_STAGGER_MM)
     if turns is not None:
         pts, bounds = turns.points, turns.bounds
         m = np.diff(bounds)

@@ -30,8 +30,8 @@ from tattotronix.art.grid import InkMask
 from tattotronix.path.inklookup import lines_on_ink
 from tattotronix.path.polyline import resample
 
-__all__ = ["ANTIPARALLEL_TOL", "STRAIGHT_TOL_MM", "TURN_RADIUS_PITCHES", "Turns", "fillet",
-           "round_turns"]
+__all__ = ["ANTIPARALLEL_TOL", "STRAIGHT_TOL_MM", "TURN_MAX_STAGGER_MM", "TURN_RADIUS_PITCHES",
+           "Turns", "fillet", "round_turns"]
 
 #: two runs are antiparallel when their unit directions sum to less than this (hatch rows
 #: of one angle are exactly antiparallel; a bend of 0.1 degree is not a hatch)
@@ -44,6 +44,12 @@ STRAIGHT_TOL_MM = 1e-6
 #: under the tip's 100 mm/s^2; a staggered jog's fillets are made smaller, so that no
 #: tangent is longer than this radius
 TURN_RADIUS_PITCHES = 0.5
+#: the most two run ends may be staggered along the runs and be turned, mm: any. Turning
+#: only aligned ends (0.15: a marking step) keeps more of the fill's ink at the staggered
+#: corners, for less time saved (measured: emblem cycle 1.147 and coverage 50.9 %, logo
+#: 1.083 and 36.2 %, against 1.135 and 50.0 %, 1.068 and 35.3 % turning every jog; 1.157
+#: and 51.7 %, 1.086 and 36.4 % with straight jogs)
+TURN_MAX_STAGGER_MM = math.inf
 #: a trimmed run keeps at least this share of a step, so no run shrinks to a point
 _MIN_RUN_STEPS = 1.0
 
@@ -106,7 +112,7 @@ def _straight(p: NDArray[np.float64]) -> bool:
 
 def round_turns(points: NDArray[np.float64], bounds: NDArray[np.intp],
                 turnable: NDArray[np.bool_], on_ink: InkMask, step_mm: float,
-                radius_mm: float) -> Turns | None:
+                radius_mm: float, max_stagger_mm: float = math.inf) -> Turns | None:
     """Round both corners of the jog of ``turnable`` gaps where the turn fits.
 
     Args:
@@ -118,6 +124,8 @@ def round_turns(points: NDArray[np.float64], bounds: NDArray[np.intp],
             on it).
         step_mm: the marking step, mm (the turn's longest chord, and its least radius).
         radius_mm: the fillets' largest radius, mm.
+        max_stagger_mm: the most the next run's start may lie along the runs from this
+            one's end, mm (a larger stagger keeps its straight jog).
 
     Returns:
         The strokes with their turns, or None when no gap is turned.
@@ -142,6 +150,8 @@ def round_turns(points: NDArray[np.float64], bounds: NDArray[np.intp],
         if jog <= step_mm:
             continue
         j = g / jog
+        if abs(float(g @ t1)) > max_stagger_mm:
+            continue
         tan1 = math.tan(0.5 * math.acos(max(-1.0, min(1.0, float(t1 @ j)))))
         tan2 = math.tan(0.5 * math.acos(max(-1.0, min(1.0, float(j @ t2)))))
         room_a = float((e1 - a0) @ t1) - _MIN_RUN_STEPS * step_mm
