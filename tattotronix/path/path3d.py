@@ -27,6 +27,7 @@ from tattotronix.art.grid import InkMask
 from tattotronix.path.costs import SAME_POINT_MM, can_drag
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.polyline import resample_many
+from tattotronix.path.turns import TURN_MAX_STAGGER_MM, TURN_RADIUS_PITCHES, round_turns
 
 __all__ = ["APPROACH", "MARK", "TRAVEL", "Path3D", "build_path", "build_path_flat",
            "step_lengths"]
@@ -91,6 +92,7 @@ def build_path(
 def build_path_flat(
     points: NDArray[np.float64], bounds: NDArray[np.intp], mask: InkMask,
     params: ToolpathParams, drag_max_mm: float | None = None,
+    turnable: NDArray[np.bool_] | None = None,
 ) -> Path3D:
     """:func:`build_path` of strokes laid out one after the other (no loop per stroke).
 
@@ -101,9 +103,13 @@ def build_path_flat(
         mask: the ink mask (drags must stay on ink).
         params: lift geometry and the resampling step.
         drag_max_mm: as for :func:`build_path`.
+        turnable: (n - 1,) the gaps between two fill runs: where such a gap is crossed
+            with the needle down, the straight jog may become a round turn
+            (:func:`~tattotronix.path.turns.round_turns`); None: straight jogs only.
 
     Returns:
-        The path, equal to what :func:`build_path` makes of the same strokes.
+        The path, equal to what :func:`build_path` makes of the same strokes (without
+        ``turnable``).
     """
     reach = params.drag_max_mm if drag_max_mm is None else drag_max_mm
     n = len(bounds) - 1
@@ -114,6 +120,15 @@ def build_path_flat(
     ends = pts[bounds[1:-1] - 1]  # (n - 1, 2): where the needle is after stroke k
     starts = pts[bounds[1:-1]]  # (n - 1, 2): where stroke k + 1 starts
     stay = can_drag(mask, ends, starts, reach)
+    turns = None
+    if turnable is not None and n > 1:
+        turns = round_turns(pts, bounds, np.asarray(turnable, bool) & stay, mask,
+                            params.step_mm, TURN_RADIUS_PITCHES * params.pitch_mm,
+                            TURN_MAX_STAGGER_MM)
+    if turns is not None:
+        pts, bounds = turns.points, turns.bounds
+        m = np.diff(bounds)
+        ends, starts = pts[bounds[1:-1] - 1], pts[bounds[1:-1]]
 
     # the drag across each gap crossed with the needle down, resampled like a stroke
     drag_k = np.flatnonzero(stay)
@@ -121,6 +136,14 @@ def build_path_flat(
     gap_src = np.empty((2 * len(drag_k), 2))
     gap_src[0::2], gap_src[1::2] = ends[drag_k], starts[drag_k]
     gap_pts, gap_ob = resample_many(gap_src, gap_b, params.step_mm)
+    if turns is not None and turns.arcs:  # the turns' arcs in place of their straight jogs
+        inner = [turns.arcs[k] if k in turns.arcs else gap_pts[gap_ob[i] + 1:gap_ob[i + 1] - 1]
+                 for i, k in enumerate(drag_k.tolist())]
+        sizes = np.array([len(x) + 2 for x in inner], dtype=np.intp)
+        gap_ob = np.concatenate([[0], np.cumsum(sizes)]).astype(np.intp)
+        gap_pts = np.zeros((int(gap_ob[-1]), 2))
+        for i, x in enumerate(inner):
+            gap_pts[gap_ob[i] + 1:gap_ob[i + 1] - 1] = x
     gap_n = np.maximum(np.diff(gap_ob) - 2, 0)  # the inner points only
 
     down = np.concatenate([[False], stay])  # stroke k is reached with the needle down

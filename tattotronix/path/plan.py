@@ -38,7 +38,7 @@ from tattotronix.path.params import ToolpathParams
 from tattotronix.path.path3d import Path3D, build_path_flat
 from tattotronix.path.polyline import resample_many
 from tattotronix.path.regions import find_regions
-from tattotronix.path.strokes import Drawing, regions_drawing
+from tattotronix.path.strokes import Drawing, StrokeKind, regions_drawing
 from tattotronix.path.timing import PathMetrics, measure, segment_lengths, timestamps
 
 __all__ = ["MAX_BLEED_SHARE", "MAX_FILL_CELLS", "MAX_POINTS", "MAX_STROKES", "Toolpath",
@@ -308,7 +308,8 @@ def plan_toolpath(mask: InkMask, params: ToolpathParams, max_passes: int = MAX_P
     canonical = resample_many(drawing.vertices, drawing.bounds, params.step_mm)
     pts, bounds = result.order.resampled(drawing, params.step_mm, canonical)
     laps.lap("resample")
-    path = build_path_flat(pts, bounds, on_ink, params)
+    fill = drawing.kinds[result.order.sequence] == StrokeKind.FILL
+    path = build_path_flat(pts, bounds, on_ink, params, turnable=fill[:-1] & fill[1:])
     laps.lap("path")
     baseline = build_path_flat(*canonical, on_ink, params, math.inf)
     orig = measure(baseline, params)

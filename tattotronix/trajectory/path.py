@@ -294,7 +294,9 @@ def path_derivatives(q: Array, s: Array) -> tuple[Array, Array]:
 
 
 def turn_radii(tcp: Array) -> Array:
-    """(N,) local radius of the tip path at each point, m: mean adjacent chord / turn angle.
+    """(N,) local radius of the tip path at each point, m: the circle whose chords are
+    the mean adjacent chord and turn by the turn angle between them (``h / (2 sin(a /
+    2))``: exact on a circle sampled in equal chords).
 
     ``inf`` where the path goes straight on and at both ends.
     """
@@ -307,5 +309,5 @@ def turn_radii(tcp: Array) -> Array:
     a, b = d[:-1], d[1:]
     ang = np.arctan2(np.linalg.norm(np.cross(a, b), axis=1), np.einsum("ij,ij->i", a, b))
     with np.errstate(divide="ignore"):
-        r[1:-1] = np.where(ang > 0, 0.5 * (h[:-1] + h[1:]) / ang, math.inf)
+        r[1:-1] = np.where(ang > 0, 0.25 * (h[:-1] + h[1:]) / np.sin(0.5 * ang), math.inf)
     return r

@@ -66,6 +66,7 @@ from tattotronix.trajectory.timelaw import (
 from tattotronix.trajectory.travel import Blend, TravelPlanner
 
 __all__ = [
+    "CORNER_RADIUS_TOL",
     "NPZ_KEYS",
     "MoveSummary",
     "SpeedLimit",
@@ -243,6 +244,12 @@ class SpeedLimit:
         }
 
 
+#: a bend this share under ``corner_radius_m`` is still held at the feed: the hatch's round
+#: turns (:mod:`tattotronix.path.turns`) are drawn at exactly half the pitch, and their
+#: radius read back from the IK's tip points is a hair under it
+CORNER_RADIUS_TOL = 0.02
+
+
 def speed_limit(path: JointPath, dq: Array, d2q: Array, limits: JointLimits, *,
                 feed_m_s: float, speed: float, corner_radius_m: float) -> SpeedLimit:
     """The fastest speed that holds the marking feed (see the module docstring, step 3).
@@ -264,7 +271,7 @@ def speed_limit(path: JointPath, dq: Array, d2q: Array, limits: JointLimits, *,
     held[1:] |= slow_seg
     held[[0, -1]] = False
     radius = turn_radii(path.tcp)
-    held &= radius >= corner_radius_m
+    held &= radius >= corner_radius_m * (1.0 - CORNER_RADIUS_TOL)
     idx = np.flatnonzero(held)
     if idx.size == 0:
         return SpeedLimit(speed, math.inf, math.inf, "", "", 0.0, 0.0, -1, (0.0, 0.0, 0.0),
