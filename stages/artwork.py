@@ -4,9 +4,9 @@ Writes ``data/artwork/<name>.png`` (8-bit grey, on the mask grid: ``mask.width_m
 or an SVG's own physical width, at ``mask.res_mm`` per pixel or finer for thin strokes;
 tattotronix/art/sizing.py) and ``data/metrics/artwork/<name>.json``. ``artwork.source``
 picks the file (null: the built-in emblem; ``portrait``: the built-in photograph);
-``artwork.name`` names the outputs and defaults to the file's stem. With ``artwork.vector=true`` an SVG's
-stroked lines are also written, from its geometry, to ``data/artwork/<name>-lines.npz``
-(empty otherwise; tattotronix/art/vector.py).
+``artwork.name`` names the outputs and defaults to the file's stem. With
+``artwork.vector=true`` an SVG's stroked lines are also written, from its geometry, to
+``data/artwork/<name>-lines.npz`` (empty otherwise; tattotronix/art/vector.py).
 """
 
 from __future__ import annotations
