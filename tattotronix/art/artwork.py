@@ -276,7 +276,8 @@ def _has_transparency(im: Image.Image) -> bool:
     """Whether any pixel of the image is fully transparent."""
     if im.mode not in ("RGBA", "LA", "PA", "La", "RGBa", "P") and "transparency" not in im.info:
         return False
-    return bool(im.convert("RGBA").getextrema()[3][0] == 0)
+    alpha = np.asarray(im.convert("RGBA").getchannel("A"))
+    return bool(alpha.min() == 0)
 
 
 def _to_grey(im: Image.Image) -> NDArray[np.float64]:
