@@ -24,6 +24,7 @@ from tattotronix.path.export import (
     TRAVEL_LAYER,
     panel_extent_mm,
     path_svg,
+    stroke_directions,
     stroke_starts,
     toolpath_svg,
 )
@@ -135,6 +136,8 @@ def test_round_trip(plan: Toolpath) -> None:
     ink = down[:-1] & down[1:]
     kinds = plan.drawing.kinds[plan.order.sequence]
     starts = stroke_starts(plan.drawing, plan.order)
+    dirs = stroke_directions(plan.drawing, plan.order)
+    turns = 0
     used = np.zeros(len(ink), dtype=bool)
     dots = 0
     for layer in LAYERS[:-1]:
@@ -149,10 +152,15 @@ def test_round_trip(plan: Toolpath) -> None:
             if layer is DRAG_LAYER:  # from one stroke's end into the next one's start
                 k = stroke[rows[-1]]
                 assert stroke[rows[0]] == k - 1 and (stroke[rows[1:]] == k).all()
-                assert np.abs(poly[-1] - starts[k]).max() <= UM
-                d = (poly[-1] - poly[0]) / np.linalg.norm(poly[-1] - poly[0])
-                off = (poly - poly[0]) @ np.array([-d[1], d[0]])
-                assert np.abs(off).max() <= 2 * UM  # a straight line
+                rel = poly[-1] - starts[k]
+                if np.abs(rel).max() <= UM:  # a straight drag, to the stroke's start
+                    d = (poly[-1] - poly[0]) / np.linalg.norm(poly[-1] - poly[0])
+                    off = (poly - poly[0]) @ np.array([-d[1], d[0]])
+                    assert np.abs(off).max() <= 2 * UM  # a straight line
+                else:  # a round turn, to the run trimmed along its line
+                    along = rel @ dirs[k]
+                    assert along > 0 and np.abs(rel - along * dirs[k]).max() <= UM
+                    turns += 1
             else:
                 owners = stroke[rows if dot else rows[1:]]
                 assert len(set(owners.tolist())) == 1
@@ -163,6 +171,7 @@ def test_round_trip(plan: Toolpath) -> None:
     assert min(counts[n] for n in ("outer outline", "hole outline", "fill row", "line",
                                    "drag", "travel")) > 0, counts
     assert counts["drag"] == path.drags
+    assert turns > 0  # the shape's hatch has round turns, drawn in the drag layer
 
     # travel: from a lift (a point in the skin, then one above it) to the next plunge
     lifts = {tuple(np.round(uv[i], 3)) for i in np.flatnonzero(down[:-1] & ~down[1:])}
@@ -217,7 +226,7 @@ def test_same_plan_same_bytes(plan: Toolpath) -> None:
     moved[len(moved) // 2, 0] += 2 * UM
     other = path_svg(Path3D(moved, plan.path.kind, plan.path.stroke, plan.path.drags),
                      plan.drawing.kinds[seq], stroke_starts(plan.drawing, plan.order),
-                     NEEDLE_MM, extent, "B")
+                     NEEDLE_MM, extent, "B", stroke_directions(plan.drawing, plan.order))
     assert other != text and len(other) == len(text)
 
 

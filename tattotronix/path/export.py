@@ -44,7 +44,7 @@ from tattotronix.path.polyline import oriented
 from tattotronix.path.strokes import Drawing, StrokeKind
 
 __all__ = ["DRAG_LAYER", "LAYERS", "LAYER_OF_KIND", "TRAVEL_LAYER", "Layer", "panel_extent_mm",
-           "path_svg", "stroke_starts", "toolpath_svg"]
+           "path_svg", "stroke_directions", "stroke_starts", "toolpath_svg"]
 
 SVG_NS = "http://www.w3.org/2000/svg"
 INKSCAPE_NS = "http://www.inkscape.org/namespaces/inkscape"
@@ -96,10 +96,9 @@ def panel_extent_mm(panel_size_mm: tuple[float, float]) -> tuple[float, float, f
     return (-pw / 2, pw / 2, -ph / 2, ph / 2)
 
 
-def stroke_starts(drawing: Drawing, order: Order) -> NDArray[np.float64]:
-    """(n, 2) where each drawn stroke starts, in drawing order, panel mm: its vertex at the
-    seam (a loop) or its first vertex as drawn (reversed or not), as the planner orients it
-    (:func:`~tattotronix.path.polyline.oriented`)."""
+def _oriented_vertex(drawing: Drawing, order: Order, nth: int) -> NDArray[np.float64]:
+    """(n, 2) each drawn stroke's ``nth`` vertex as the planner orients it (its last, for
+    a stroke with fewer), in drawing order."""
     seq = np.asarray(order.sequence, dtype=np.intp)
     if not len(seq):
         return np.zeros((0, 2))
@@ -109,7 +108,24 @@ def stroke_starts(drawing: Drawing, order: Order) -> NDArray[np.float64]:
     src = np.repeat(vb[seq] - fb[:-1], sizes) + np.arange(int(fb[-1]))
     idx = oriented(fb, drawing.closed[seq], np.asarray(order.seam, dtype=np.intp),
                    np.asarray(order.reverse, dtype=bool))
-    out: NDArray[np.float64] = drawing.vertices[src[idx[fb[:-1]]]]
+    out: NDArray[np.float64] = drawing.vertices[src[idx[fb[:-1] + np.minimum(nth, sizes - 1)]]]
+    return out
+
+
+def stroke_starts(drawing: Drawing, order: Order) -> NDArray[np.float64]:
+    """(n, 2) where each drawn stroke starts, in drawing order, panel mm: its vertex at the
+    seam (a loop) or its first vertex as drawn (reversed or not), as the planner orients it
+    (:func:`~tattotronix.path.polyline.oriented`)."""
+    return _oriented_vertex(drawing, order, 0)
+
+
+def stroke_directions(drawing: Drawing, order: Order) -> NDArray[np.float64]:
+    """(n, 2) the unit direction of each drawn stroke's first segment (zero for a single
+    point): a round turn (:mod:`tattotronix.path.turns`) trims a hatch run along it, so the
+    run then starts on that line, past :func:`stroke_starts`."""
+    d = _oriented_vertex(drawing, order, 1) - stroke_starts(drawing, order)
+    n = np.hypot(d[:, 0], d[:, 1])
+    out: NDArray[np.float64] = np.where(n[:, None] > 0, d / np.where(n > 0, n, 1.0)[:, None], 0.0)
     return out
 
 
@@ -132,12 +148,14 @@ def toolpath_svg(tp: Toolpath, needle_width_mm: float,
     """
     seq = tp.order.sequence
     return path_svg(tp.path, tp.drawing.kinds[seq], stroke_starts(tp.drawing, tp.order),
-                    needle_width_mm, extent_mm, title)
+                    needle_width_mm, extent_mm, title,
+                    stroke_directions(tp.drawing, tp.order))
 
 
 def path_svg(path: Path3D, stroke_kind: NDArray[np.integer],
              stroke_start_mm: NDArray[np.float64], needle_width_mm: float,
-             extent_mm: tuple[float, float, float, float], title: str = "") -> str:
+             extent_mm: tuple[float, float, float, float], title: str = "",
+             stroke_dir: NDArray[np.float64] | None = None) -> str:
     """:func:`toolpath_svg` of a path and its drawn strokes.
 
     Args:
@@ -149,6 +167,9 @@ def path_svg(path: Path3D, stroke_kind: NDArray[np.integer],
         needle_width_mm: as for :func:`toolpath_svg`.
         extent_mm: as for :func:`toolpath_svg`.
         title: as for :func:`toolpath_svg`.
+        stroke_dir: (n, 2) each stroke's first direction (:func:`stroke_directions`): a
+            stroke reached by a round turn starts where its path first lies on that line,
+            at or past its start; None: only at its start.
 
     Returns:
         The SVG text.
@@ -161,7 +182,9 @@ def path_svg(path: Path3D, stroke_kind: NDArray[np.integer],
         raise ValueError(f"empty SVG extent {extent_mm} (u_min, u_max, v_min, v_max)")
     if not needle_width_mm > 0:
         raise ValueError(f"needle width must be > 0 mm (got {needle_width_mm})")
-    pieces = _pieces(path, np.asarray(stroke_kind), np.asarray(stroke_start_mm, np.float64))
+    starts = np.asarray(stroke_start_mm, np.float64)
+    dirs = np.zeros_like(starts) if stroke_dir is None else np.asarray(stroke_dir, np.float64)
+    pieces = _pieces(path, np.asarray(stroke_kind), starts, dirs)
     uv = path.uvz_mm[:, :2]
     xs = (np.round(uv[:, 0] - u0, 3) + 0.0).tolist()  # + 0.0: no "-0.000"
     ys = (np.round(v1 - uv[:, 1], 3) + 0.0).tolist()
@@ -202,8 +225,8 @@ def _num(x: float) -> str:
     return text if text != "-0" else "0"
 
 
-def _pieces(path: Path3D, stroke_kind: NDArray[np.integer],
-            starts: NDArray[np.float64]) -> dict[int, list[list[int]]]:
+def _pieces(path: Path3D, stroke_kind: NDArray[np.integer], starts: NDArray[np.float64],
+            dirs: NDArray[np.float64]) -> dict[int, list[list[int]]]:
     """The path's points in pieces, per layer number: each piece the row indices of one
     polyline, in path order."""
     uv = path.uvz_mm[:, :2]
@@ -220,7 +243,10 @@ def _pieces(path: Path3D, stroke_kind: NDArray[np.integer],
         k = int(stroke[i + 1])
         end = int(np.searchsorted(stroke, k, side="right"))  # strokes never go back
         d = uv[i + 1:end] - starts[k]
-        at = np.flatnonzero(np.hypot(d[:, 0], d[:, 1]) <= _START_TOL_MM)
+        along = d @ dirs[k]  # 0 for a stroke with no direction: its start only
+        across = np.hypot(d[:, 0] - along[:, None][:, 0] * dirs[k][0],
+                          d[:, 1] - along * dirs[k][1])
+        at = np.flatnonzero((across <= _START_TOL_MM) & (along >= -_START_TOL_MM))
         if len(at):  # else the stroke starts where the last ended: no drag at all
             drag[i:i + 1 + int(at[0])] = True
     kind_layer = np.array([LAYER_OF_KIND[StrokeKind(int(k))].number for k in stroke_kind]
