@@ -34,6 +34,8 @@ from tattotronix.errors import TattotronixError
 from tattotronix.hardware.arm import DRY_RUN_STATE, TEST_HOOK_ENV, ArmState
 from tattotronix.io.artifacts import TrajectoryRecord, make_provenance
 from tattotronix.io.outputs import SWEEP_JOBS, Outputs
+from tattotronix.kinematics import Chain
+from tattotronix.robot.description import RobotDescription
 
 from .conftest import PYTHON, ROOT, default_signals, stage_env
 
@@ -123,20 +125,40 @@ STAGE_STATES = {k: BAD_STATES[k] for k in ("frame -5", "frame 99999", "frame 611
                                            "frame '611'", "session 'x'", "corrupt JSON")}
 
 
+def _a_marking_frame(draw_data: Path, scratch: Path, desc: RobotDescription) -> int:
+    """A frame of the small drawing's arm program with the needle in the work: ten frames
+    after the first that reaches the surface (from a whole dry run on a copy, so the
+    interrupt lands where a lift is needed, whatever the path planner does)."""
+    data = scratch / "data"
+    shutil.copytree(draw_data, data)
+    shutil.copy(draw_data.parent / "small.png", scratch / "small.png")
+    whole = _arm(data)
+    assert whole.returncode == 0, whole.stderr
+    poses = [json.loads(line) for line in
+             (data / "runs" / "small-arm" / "poses.jsonl").read_text().splitlines()]
+    chain = Chain.from_description(desc)
+    tip_z = chain.fk(np.array([p["q"] for p in poses]))[0][:, 2]
+    surface = desc.panel_centre[2] + desc.panel_size[2] / 2
+    down = np.flatnonzero(tip_z <= surface + 1e-5)
+    assert down.size, "the small drawing never reaches the surface"
+    return int(down[0]) + 10
+
+
 @pytest.mark.slow
-def test_a_bad_arm_state_is_refused_and_nothing_is_inked_twice(draw_data: Path,
-                                                               tmp_path: Path) -> None:
+def test_a_bad_arm_state_is_refused_and_nothing_is_inked_twice(
+        draw_data: Path, tmp_path: Path, desc: RobotDescription) -> None:
     """A double Ctrl-C while drawing: 130, one line. Then every bad state file (and one
     whose frame count is not the program's): exit 2, one line naming the file and the
     field, nothing sent, nothing written. Then the good one: the resume draws every frame
     once."""
-    first = _arm(draw_data, hook="draw:100:INT;lift:1:INT")
+    at = _a_marking_frame(draw_data, tmp_path / "whole", desc)
+    first = _arm(draw_data, hook=f"draw:{at}:INT;lift:1:INT")
     assert first.returncode == 130, first.stderr
-    line = _one_line(first, "draw: interrupted: SIGINT while drawing, at frame 100 of ")
+    line = _one_line(first, f"draw: interrupted: SIGINT while drawing, at frame {at} of ")
     assert "then SIGINT: noted and ignored" in line and line.endswith("resume=true")
     run = draw_data / "runs" / "small-arm"
     good = json.loads((run / DRY_RUN_STATE).read_text())
-    assert (good["status"], good["frame"]) == ("paused", 100)
+    assert (good["status"], good["frame"]) == ("paused", at)
 
     cases = {**STAGE_STATES, "frames not the program's": ({"frames": 611}, "'frames'")}
     runs = {}
