@@ -45,12 +45,12 @@ from tattotronix.trajectory import (
     SpeedRefused,
     Trajectory,
     TrajectoryParams,
+    corner_points,
     densify,
     load_trajectory,
     path_derivatives,
     plan_trajectory,
     time_parameterise,
-    turn_radii,
 )
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -210,9 +210,8 @@ def test_joint_rates_agree_with_q_of_t(traj: Trajectory) -> None:
     dt = np.diff(traj.t)
     chord = np.diff(traj.q, axis=0) / dt[:, None]
     mean = 0.5 * (traj.qd[:-1] + traj.qd[1:])
-    radius = turn_radii(traj.tcp)
-    smooth = (radius[:-1] > traj.params.corner_radius_m) & (
-        radius[1:] > traj.params.corner_radius_m)
+    corner = corner_points(traj.tcp, traj.params.corner_radius_m)
+    smooth = ~corner[:-1] & ~corner[1:]
     assert smooth.mean() > 0.85  # most of the drawing (the fill's row turns are corners)
     err = np.abs(chord - mean)[smooth].max()
     assert err <= 0.01 * np.abs(traj.qd).max()
@@ -228,8 +227,7 @@ def test_marking_runs_at_the_feed(traj: Trajectory, chain: Chain) -> None:
     on_mark = np.zeros(len(traj.t), bool)
     on_mark[1:-1] = (seg[:-1] == 1) & (seg[1:] == 1)
     at_feed = on_mark & (np.abs(traj.law.sdot - feed) <= 1e-12)
-    radius = turn_radii(traj.tcp)
-    held = at_feed & (radius >= traj.params.corner_radius_m)
+    held = at_feed & ~corner_points(traj.tcp, traj.params.corner_radius_m)
     assert held.sum() > 0.9 * on_mark.sum()
     jac = chain.jacobian(traj.q[held])[:, :3, :]
     tip = np.linalg.norm(np.einsum("nij,nj->ni", jac, traj.qd[held]), axis=1)

@@ -48,9 +48,11 @@ from tattotronix.io.jsontypes import JsonDict
 from tattotronix.kinematics import Chain, IkOptions
 from tattotronix.trajectory.path import (
     APPROACH,
+    CORNER_RADIUS_TOL,
     MARK,
     TRAVEL,
     JointPath,
+    corner_points,
     densify,
     path_derivatives,
     segment_kinds,
@@ -244,12 +246,6 @@ class SpeedLimit:
         }
 
 
-#: a bend this share under ``corner_radius_m`` is still held at the feed: the hatch's round
-#: turns (:mod:`tattotronix.path.turns`) are drawn at exactly half the pitch, and their
-#: radius read back from the IK's tip points is a hair under it
-CORNER_RADIUS_TOL = 0.02
-
-
 def speed_limit(path: JointPath, dq: Array, d2q: Array, limits: JointLimits, *,
                 feed_m_s: float, speed: float, corner_radius_m: float) -> SpeedLimit:
     """The fastest speed that holds the marking feed (see the module docstring, step 3).
@@ -271,7 +267,7 @@ def speed_limit(path: JointPath, dq: Array, d2q: Array, limits: JointLimits, *,
     held[1:] |= slow_seg
     held[[0, -1]] = False
     radius = turn_radii(path.tcp)
-    held &= radius >= corner_radius_m * (1.0 - CORNER_RADIUS_TOL)
+    held &= ~corner_points(path.tcp, corner_radius_m)
     idx = np.flatnonzero(held)
     if idx.size == 0:
         return SpeedLimit(speed, math.inf, math.inf, "", "", 0.0, 0.0, -1, (0.0, 0.0, 0.0),
@@ -529,9 +525,10 @@ def _time_path(path: JointPath, params: TrajectoryParams, limits: JointLimits,
     acceleration while marking and on the approach, and the jerk limit; at rest at both
     ends (and, with a jerk limit, where the needle leaves the ink and where each approach
     begins). ``derivatives``: ``(s, dq, d2q)`` of ``path`` when the caller has them."""
+    corners = corner_points(path.tcp, params.corner_radius_m)
     if derivatives is None:
         s = path.arc_length()
-        dq, d2q = path_derivatives(path.q, s)
+        dq, d2q = path_derivatives(path.q, s, corners)
     else:
         s, dq, d2q = derivatives
     seg = path.segment_kinds()
@@ -539,7 +536,7 @@ def _time_path(path: JointPath, params: TrajectoryParams, limits: JointLimits,
                  params.travel_feed_m_s * params.speed, free)
     tip = None
     if params.tip_accel_m_s2 is not None:
-        dp, d2p = path_derivatives(path.tcp, s)
+        dp, d2p = path_derivatives(path.tcp, s, corners)
         tip = TipLimit(dp, d2p, params.tip_accel_m_s2, seg != TRAVEL)
     # with a jerk limit, the needle comes to rest where it leaves the ink and where each
     # approach begins, and each stretch between is filtered with the window it needs
@@ -694,7 +691,8 @@ def plan_trajectory(path: JointPath, chain: Chain, limits: JointLimits,
     dense = densify(path, chain, params.max_step_m, ik, keep=hops)
     t1 = time.perf_counter()
     s_all = dense.arc_length()
-    dq, d2q = path_derivatives(dense.q, s_all)
+    dq, d2q = path_derivatives(dense.q, s_all,
+                               corner_points(dense.tcp, params.corner_radius_m))
     t2 = time.perf_counter()
     check = speed_limit(dense, dq, d2q, limits, feed_m_s=params.feed_mark_m_s,
                         speed=params.speed, corner_radius_m=params.corner_radius_m)
