@@ -174,21 +174,18 @@ def worst_line(lines_svg_path: str, uv_mm: np.ndarray, marking: np.ndarray,
 
 def plan_figures(art: Art) -> dict[str, float | int | str | None]:
     """Plan ``art`` with and without compensation, and its trajectory; the figures."""
-    from tattotronix.art.vector import artwork_lines
     from tattotronix.config.params import compose_settings, with_overrides
     from tattotronix.kinematics import Chain
     from tattotronix.path.params import ToolpathParams
     from tattotronix.path.plan import plan_toolpath
-    from tattotronix.pipeline import mask_of, solve_ik, trajectory_from_path
+    from tattotronix.pipeline import drawing_inputs, solve_ik, trajectory_from_path
     from tattotronix.robot.description import build_description
     from tattotronix.trajectory import JointPath
 
     cfg = compose_settings([f"artwork.source={art.source}", f"artwork.name={art.name}",
                             *art.overrides])
     t0 = time.perf_counter()
-    mask = mask_of(cfg, art.source, art.name)
-    vector = (artwork_lines(art.source, mask.ink.shape, mask.res_mm, cfg.toolpath.step_mm)
-              if cfg.artwork.vector else None)
+    mask, vector = drawing_inputs(cfg, art.source, art.name)
     out: dict[str, float | int | str | None] = {}
     tps = {}
     for comp in (False, True):

@@ -38,6 +38,7 @@ def main(cfg: Config, out: Outputs) -> None:
         cfg.artwork.source, cfg.mask.width_mm, cfg.mask.res_mm, cfg.artwork.max_pixels, name,
         svg_local_files=cfg.artwork.svg_local_files,
         default_width_mm=cfg.mask.default_width_mm, min_line_px=cfg.mask.min_line_px,
+        height_mm=cfg.mask.height_mm,
     )
     ink, _, _ = otsu_ink(art.grey)
     lines = (artwork_lines(cfg.artwork.source, art.shape, art.res_mm, cfg.toolpath.step_mm)

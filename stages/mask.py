@@ -18,7 +18,7 @@ import numpy as np
 from PIL import Image
 
 from tattotronix.art.artwork import artwork_grid, artwork_name
-from tattotronix.art.mask import make_mask
+from tattotronix.art.mask import mask_on_panel
 from tattotronix.config.schema import Config
 from tattotronix.errors import TattotronixError
 from tattotronix.io.artifacts import make_provenance
@@ -29,7 +29,8 @@ log = logging.getLogger("tattotronix.stages.mask")
 
 
 def main(cfg: Config, out: Outputs) -> None:
-    """Threshold (or edge-detect) the artwork raster; write the mask, preview and metrics."""
+    """Threshold (or edge-detect) the artwork raster where it lies on the panel (refused off
+    it); write the mask, preview and metrics."""
     name = artwork_name(cfg.artwork)
     src = out.require(out.input("artwork", f"{name}.png"), "artwork")
     try:
@@ -43,15 +44,8 @@ def main(cfg: Config, out: Outputs) -> None:
         ) from None
     grid = artwork_grid(out.require(out.input("metrics", "artwork", f"{name}.json"),
                                     "artwork"), grey.shape)
-    mask, stats = make_mask(
-        grey,
-        grid.res_mm,
-        cfg.mask.method,
-        cfg.mask.min_region_mm2,
-        edge_sigma_px=cfg.mask.edge_sigma_px,
-        edge_k=cfg.mask.edge_k,
-        auto_invert=cfg.mask.auto_invert and not grid.transparent,
-    )
+    mask, stats = mask_on_panel(grey, grid.res_mm, cfg.mask, cfg.robot.panel.size_mm,
+                                grid.transparent)
     npz = out.path("mask", f"{name}.npz")
     mask.save(out.tmp_path(npz), make_provenance(cfg, {"artwork": src}))
     preview = out.path("mask", f"{name}.png")

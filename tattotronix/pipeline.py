@@ -18,8 +18,8 @@ from numpy.typing import ArrayLike
 
 from tattotronix.art.artwork import load_artwork
 from tattotronix.art.grid import InkMask
-from tattotronix.art.mask import make_mask
-from tattotronix.art.vector import artwork_lines
+from tattotronix.art.mask import mask_on_panel
+from tattotronix.art.vector import VectorLines, artwork_lines
 from tattotronix.config.schema import Config, IkConfig
 from tattotronix.kinematics import Chain, IkOptions, IkResult, solve_path
 from tattotronix.path.params import ToolpathParams
@@ -29,8 +29,8 @@ from tattotronix.trajectory import JointLimits, JointPath, Trajectory, Trajector
 from tattotronix.trajectory import plan_trajectory as _plan_trajectory
 from tattotronix.trajectory.travel import TravelPlanner
 
-__all__ = ["ik_settings", "mask_of", "plan_drawing", "solve_ik", "trajectory_from_path",
-           "straight_travel_baseline", "travel_planner"]
+__all__ = ["drawing_inputs", "ik_settings", "mask_of", "plan_drawing", "solve_ik",
+           "straight_travel_baseline", "trajectory_from_path", "travel_planner"]
 
 log = logging.getLogger("tattotronix.pipeline")
 
@@ -95,20 +95,33 @@ def straight_travel_baseline(cfg: Config, path: JointPath, desc: RobotDescriptio
 
 
 def mask_of(cfg: Config, source: str | Path | None, name: str) -> InkMask:
-    """The ink mask of an artwork, as the artwork and mask stages make it.
+    """The ink mask of an artwork, as the artwork and mask stages make it (placed on the
+    panel).
 
     Raises:
-        TattotronixError: unreadable art, or a mask the settings refuse.
+        TattotronixError: unreadable art, or a mask the settings refuse (one off the panel).
+    """
+    return drawing_inputs(cfg, source, name)[0]
+
+
+def drawing_inputs(cfg: Config, source: str | Path | None, name: str
+                   ) -> tuple[InkMask, VectorLines | None]:
+    """The ink mask of an artwork and its vector lines (``artwork.vector``; else None), as
+    the artwork and mask stages make them.
+
+    Raises:
+        TattotronixError: unreadable art, or a mask the settings refuse (one off the panel).
     """
     m = cfg.mask
     art = load_artwork(source, m.width_mm, m.res_mm, cfg.artwork.max_pixels, name,
                        svg_local_files=cfg.artwork.svg_local_files,
-                       default_width_mm=m.default_width_mm, min_line_px=m.min_line_px)
+                       default_width_mm=m.default_width_mm, min_line_px=m.min_line_px,
+                       height_mm=m.height_mm)
     grey = art.as_uint8().astype(np.float64)  # what the artwork stage's PNG holds
-    mask, _ = make_mask(grey, art.res_mm, m.method, m.min_region_mm2,
-                        edge_sigma_px=m.edge_sigma_px, edge_k=m.edge_k,
-                        auto_invert=m.auto_invert and not art.transparent)
-    return mask
+    mask, _ = mask_on_panel(grey, art.res_mm, m, cfg.robot.panel.size_mm, art.transparent)
+    vector = (artwork_lines(source, art.shape, art.res_mm, cfg.toolpath.step_mm)
+              if cfg.artwork.vector else None)
+    return mask, vector
 
 
 def plan_drawing(cfg: Config, source: str | Path | None, name: str,
@@ -119,9 +132,7 @@ def plan_drawing(cfg: Config, source: str | Path | None, name: str,
         TattotronixError: whatever a stage would refuse (unreadable art, no ink, a drawing
             off the panel, unreachable points, a speed too high).
     """
-    mask = mask_of(cfg, source, name)
-    vector = (artwork_lines(source, mask.ink.shape, mask.res_mm, cfg.toolpath.step_mm)
-              if cfg.artwork.vector else None)
+    mask, vector = drawing_inputs(cfg, source, name)
     params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
     tp = plan_toolpath(mask, params, vector=vector)
     check_needle(tp, mask, params.needle_width_mm, cfg.toolpath.ink_res_mm)

@@ -232,10 +232,14 @@ def test_path_kinds_and_lifts(multi: Toolpath) -> None:
 
 
 def test_drawing_larger_than_panel_is_refused() -> None:
+    """The ink is what must fit: 210 mm of it is refused; 150 mm of ink on a 210 mm wide
+    canvas (blank margins) is drawn."""
     ink = np.zeros((200, 840), bool)  # 210 x 50 mm at 0.25 mm
-    ink[50:150, 100:700] = True
-    with pytest.raises(TattotronixError, match=r"210\.0 x 50\.0 mm.*200 x 140 mm panel"):
+    ink[50:150, :] = True
+    with pytest.raises(TattotronixError, match=r"210\.0 x 25\.0 mm of ink.*200 x 140 mm panel"):
         plan_toolpath(InkMask.centred(ink, RES), default_params())
+    ink[:, :100] = ink[:, 700:] = False
+    assert plan_toolpath(InkMask.centred(ink, RES), default_params()).metrics.entries >= 1
 
 
 @pytest.mark.parametrize("pitch", [0.0, -1.2, float("nan")])
@@ -308,9 +312,9 @@ def test_stage_bad_pitch_leaves_nothing(tmp_path: Path) -> None:
 def test_stage_too_large_leaves_nothing(tmp_path: Path) -> None:
     (tmp_path / "mask").mkdir()
     ink = np.zeros((200, 840), bool)
-    ink[50:150, 100:700] = True
+    ink[50:150, :] = True
     InkMask.centred(ink, RES).save(tmp_path / "mask" / "test.npz")
     res = _run_stage(tmp_path)
     assert res.returncode == 2
-    assert "210.0 x 50.0 mm" in res.stderr
+    assert "210.0 x 25.0 mm of ink" in res.stderr
     assert sorted(p.name for p in tmp_path.rglob("*")) == ["mask", "test.npz"]

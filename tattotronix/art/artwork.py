@@ -585,13 +585,16 @@ def _render_svg(
 
 
 def _svg_grid(path: Path, label: str, width_mm: float | None, default_width_mm: float | None,
-              res_mm: float, min_line_px: float) -> tuple[float, float]:
+              res_mm: float, min_line_px: float, height_mm: float | None = None
+              ) -> tuple[float, float]:
     """The drawn width and the grid pitch of an SVG, mm (:mod:`tattotronix.art.sizing`)."""
     text = read_svg(path, label)
-    width = drawing_width_mm(width_mm, default_width_mm, svg_physical_width_mm(text, label))
+    size = svg_intrinsic_size(text, label)
+    width = drawing_width_mm(width_mm, default_width_mm, svg_physical_width_mm(text, label),
+                             height_mm=height_mm, aspect=size[0] / size[1])
     if min_line_px <= 0:
         return width, res_mm
-    strokes = svg_strokes(path, width / svg_intrinsic_size(text, label)[0])
+    strokes = svg_strokes(path, width / size[0])
     return width, grid_pitch_mm(res_mm, thinnest_stroke(strokes), min_line_px)
 
 
@@ -617,6 +620,7 @@ def load_artwork(
     svg_local_files: bool = False,
     default_width_mm: float | None = None,
     min_line_px: float = 0.0,
+    height_mm: float | None = None,
 ) -> Artwork:
     """Read an artwork and put it on the mask grid.
 
@@ -636,6 +640,7 @@ def load_artwork(
         default_width_mm: the width of an artwork with no physical size of its own
             (``mask.default_width_mm``; needed when ``width_mm`` is None).
         min_line_px: the fewest pixels a stroked line may span (0: never refine).
+        height_mm: the drawing's height instead of ``width_mm`` (not both), mm.
 
     Returns:
         The grey raster on the grid.
@@ -657,13 +662,14 @@ def load_artwork(
         )
     if suffix in SVG_SUFFIXES:
         width_mm, res_mm = _svg_grid(path, label, width_mm, default_width_mm, res_mm,
-                                     min_line_px)
+                                     min_line_px, height_mm)
         grey, original_px, render_px, transparent = _render_svg(
             path, width_mm, res_mm, max_pixels, svg_local_files)
         kind = "svg"
     else:
-        width_mm = drawing_width_mm(width_mm, default_width_mm)
         im, fmt = _open_raster(path, label, max_pixels)
+        width_mm = drawing_width_mm(width_mm, default_width_mm, height_mm=height_mm,
+                                    aspect=im.width / im.height)
         kind = fmt or suffix.lstrip(".")
         original_px, render_px = (im.width, im.height), None
         transparent = _has_transparency(im)

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from tattotronix.art.place import Placement
 from tattotronix.errors import StageInputMissing, TattotronixError
 from tattotronix.io.npz import READ_ERRORS, save_npz
 from tattotronix.io.provenance import PROVENANCE_KEY
@@ -24,14 +25,18 @@ class InkMask:
     Attributes:
         ink: (H, W) bool, True where the needle marks. Row 0 is the top of the image.
         res_mm: grid pitch in mm.
-        xs: (W,) panel x of each column, mm, centred on the drawing (increasing).
-        ys: (H,) panel y of each row, mm, centred (decreasing: row 0 is +y).
+        xs: (W,) panel x of each column, mm (increasing); centred on the drawing unless
+            it was placed elsewhere.
+        ys: (H,) panel y of each row, mm (decreasing: row 0 is +y).
+        place: how the artwork's centred grid was put on the panel
+            (:mod:`tattotronix.art.place`; the vector lines follow it).
     """
 
     ink: NDArray[np.bool_]
     res_mm: float
     xs: NDArray[np.float64]
     ys: NDArray[np.float64]
+    place: Placement = Placement()
 
     @classmethod
     def centred(cls, ink: NDArray[np.bool_], res_mm: float) -> InkMask:
@@ -67,7 +72,7 @@ class InkMask:
         """Write as an npz (no pickles), with ``provenance``
         (:func:`tattotronix.io.artifacts.make_provenance`) when given."""
         arrays: dict[str, ArrayLike] = {"ink": self.ink, "res_mm": self.res_mm, "xs": self.xs,
-                                        "ys": self.ys}
+                                        "ys": self.ys, "place": self.place.as_array()}
         if provenance is not None:
             arrays[PROVENANCE_KEY] = np.array(provenance)
         save_npz(path, arrays)
@@ -92,6 +97,7 @@ class InkMask:
                 if missing:
                     raise refuse(f"missing {', '.join(missing)}")
                 ink, res, xs, ys = z["ink"], z["res_mm"], z["xs"], z["ys"]
+                place = z["place"] if "place" in z.files else np.zeros(3)
         except TattotronixError:
             raise
         except FileNotFoundError:
@@ -108,4 +114,6 @@ class InkMask:
         if not (math.isfinite(res_mm) and res_mm > 0 and np.all(np.isfinite(xs))
                 and np.all(np.isfinite(ys))):
             raise refuse(f"res_mm={res_mm:g} or its coordinates are not finite and positive")
-        return cls(ink.astype(bool), res_mm, xs, ys)
+        if place.shape != (3,) or place.dtype.kind != "f" or not np.all(np.isfinite(place)):
+            raise refuse(f"place {place.shape} {place.dtype}: not [rotate_deg, u, v]")
+        return cls(ink.astype(bool), res_mm, xs, ys, Placement.from_array(place))

@@ -25,6 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.art.grid import InkMask
+from tattotronix.art.place import Placement, check_on_panel, ink_extent_mm, place_grey
 from tattotronix.config.schema import MaskConfig, MaskMethod
 from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
@@ -219,6 +220,7 @@ def make_mask(
     edge_sigma_px: float = _DEFAULTS.edge_sigma_px,
     edge_k: float = _DEFAULTS.edge_k,
     auto_invert: bool = _DEFAULTS.auto_invert,
+    place: Placement | None = None,
 ) -> tuple[InkMask, MaskStats]:
     """Ink mask of a grey raster on the mask grid.
 
@@ -231,9 +233,11 @@ def make_mask(
         edge_k: ``edges``: the cut is ``mean + edge_k * std`` of the gradient magnitude.
         auto_invert: ``threshold``: draw the light side when the dark side covers more
             than half the canvas (logged in one line); False: always the dark side.
+        place: where the drawing goes on the panel (:func:`tattotronix.art.place.place_grey`:
+            the raster is turned before it is thresholded); None: centred.
 
     Returns:
-        The mask with its centred panel grid, and its statistics.
+        The mask with its panel grid, and its statistics.
 
     Raises:
         MaskMethodError: an unknown method (the message lists the allowed ones).
@@ -245,6 +249,8 @@ def make_mask(
         raise TattotronixError(f"the artwork raster must be a 2-D grey image, got {grey.shape}")
     if not res_mm > 0:
         raise TattotronixError(f"bad mask.res_mm={res_mm}: it must be positive")
+    place = place or Placement()
+    grey, xs, ys = place_grey(grey, res_mm, place)
     inverted = False
     if kind is MaskMethod.threshold:
         raw, level, inverted = otsu_ink(grey, auto_invert)
@@ -274,7 +280,7 @@ def make_mask(
     ink = lut[regions.labels]
     kept_px = regions.areas_px[keep]
 
-    mask = InkMask.centred(ink, res_mm)
+    mask = InkMask(ink, float(res_mm), xs, ys, place)
     width_mm, height_mm = mask.size_mm
     stats = MaskStats(
         method=kind.value,
@@ -298,4 +304,31 @@ def make_mask(
         stats.method, width_mm, height_mm, stats.ink_pct, stats.regions,
         stats.dropped_regions, stats.holes,
     )
+    return mask, stats
+
+
+def mask_on_panel(grey: NDArray[np.generic], res_mm: float, settings: MaskConfig,
+                  panel_mm: tuple[float, float], transparent: bool = False
+                  ) -> tuple[InkMask, MaskStats]:
+    """The ink mask of an artwork raster at the ``mask`` settings, placed on the panel
+    (``mask.anchor``, ``mask.at_mm``, ``mask.rotate_deg``), refused when its ink leaves it.
+
+    Args:
+        grey: (H, W) grey levels on the artwork's grid.
+        res_mm: the grid's pitch, mm.
+        settings: the ``mask`` settings.
+        panel_mm: the panel's (width, height), mm (``robot.panel.size``).
+        transparent: the artwork's canvas is transparent (never auto-inverted).
+
+    Raises:
+        TattotronixError: as :func:`make_mask`, and a drawing off the panel.
+    """
+    shape = np.shape(grey)
+    place = (Placement.of((int(shape[0]), int(shape[1])), res_mm, settings.anchor,
+                          settings.at_mm, settings.rotate_deg) if len(shape) == 2 else None)
+    mask, stats = make_mask(grey, res_mm, settings.method, settings.min_region_mm2,
+                            edge_sigma_px=settings.edge_sigma_px, edge_k=settings.edge_k,
+                            auto_invert=settings.auto_invert and not transparent, place=place)
+    check_on_panel(ink_extent_mm(mask.ink, mask.xs, mask.ys, mask.res_mm), panel_mm,
+                   "the drawing")
     return mask, stats

@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,16 +42,28 @@ class Stroke:
 
 
 def drawing_width_mm(width_mm: float | None, default_width_mm: float | None,
-                     own_mm: float | None = None) -> float:
-    """How wide the drawing is, mm: ``width_mm`` when set; else the artwork's own physical
-    width ``own_mm`` (an SVG's, :func:`tattotronix.art.artwork.svg_physical_width_mm`);
-    else ``default_width_mm``.
+                     own_mm: float | None = None, *, height_mm: float | None = None,
+                     aspect: float | None = None) -> float:
+    """How wide the drawing is, mm: ``width_mm`` when set; else ``height_mm`` times the
+    artwork's ``aspect`` (width over height) when that is set; else the artwork's own
+    physical width ``own_mm`` (an SVG's,
+    :func:`tattotronix.art.artwork.svg_physical_width_mm`); else ``default_width_mm``.
 
     Raises:
-        TattotronixError: no width at all (neither is set and the SVG has none).
+        TattotronixError: both a width and a height, or no width at all (neither is set
+            and the SVG has none).
     """
+    if width_mm is not None and height_mm is not None:
+        raise TattotronixError(
+            f"mask.width_mm={width_mm:g} and mask.height_mm={height_mm:g} are both set: "
+            "set one (the other follows from the artwork's aspect)")
     if width_mm is not None:
         return float(width_mm)
+    if height_mm is not None:
+        if aspect is None or not (math.isfinite(aspect) and aspect > 0):
+            raise TattotronixError(f"mask.height_mm={height_mm:g}: the artwork has no "
+                                   "aspect to size it by")
+        return float(height_mm) * float(aspect)
     if own_mm is not None:
         return float(own_mm)
     if default_width_mm is None:

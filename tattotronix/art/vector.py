@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tattotronix.art.place import Placement
 from tattotronix.errors import TattotronixError
 from tattotronix.io.npz import READ_ERRORS, save_npz
 
@@ -51,6 +52,13 @@ class VectorLines:
     def empty(cls) -> VectorLines:
         """No vector line (raster input, or ``artwork.vector=false``)."""
         return cls((), np.zeros(0))
+
+    def placed(self, place: Placement) -> VectorLines:
+        """The lines where :class:`~tattotronix.art.place.Placement` puts the drawing (the
+        mask's :attr:`~tattotronix.art.grid.InkMask.place`)."""
+        if place.identity:
+            return self
+        return VectorLines(tuple(place.apply(p) for p in self.paths), self.widths_mm)
 
     def save(self, path: Path) -> None:
         """Write as an npz: the vertices end to end, the bounds and the widths."""

@@ -296,6 +296,21 @@ class MaskMethod(Enum):
     edges = "edges"
 
 
+class Anchor(Enum):
+    """The point of a drawing that ``mask.at_mm`` places on the panel: its grid's centre,
+    or a corner or the middle of a side of its extent (before ``mask.rotate_deg``)."""
+
+    centre = "centre"
+    top_left = "top_left"
+    top = "top"
+    top_right = "top_right"
+    left = "left"
+    right = "right"
+    bottom_left = "bottom_left"
+    bottom = "bottom"
+    bottom_right = "bottom_right"
+
+
 class FillStyle(Enum):
     """How regions are filled: one hatch, a cross-hatch (a second at 90 degrees), rings
     parallel to the outline (concentric), or a hatch at the needle's width (solid)."""
@@ -490,6 +505,14 @@ class MaskConfig:
     width_mm: float | None = bounded(None, lo=0, lo_open=True, hi=1000, unit="mm")
     default_width_mm: float = bounded(150.0, lo=0, lo_open=True, hi=1000, unit="mm",
                                       why="the width of an artwork with no size of its own")
+    # the drawing's height instead of its width (its width follows from its aspect)
+    height_mm: float | None = bounded(None, lo=0, lo_open=True, hi=1000, unit="mm")
+    # where the drawing lies on the panel (tattotronix/art/place.py): its anchor point
+    # lands at at_mm (from the panel's centre: u along the arm's x, v along its y), and
+    # it turns rotate_deg anticlockwise about it; checked against the panel
+    anchor: Anchor = Anchor.centre
+    at_mm: list[float] = bounded(factory=lambda: [0.0, 0.0], lo=-1000, hi=1000, unit="mm")
+    rotate_deg: float = bounded(0.0, lo=-360, hi=360, unit="deg")
     res_mm: float = bounded(0.25, lo=MIN_RES_MM, hi=10, unit="mm",
                             why="the mask grid's coarsest pixel")
     # an SVG's thinnest stroke spans at least this many mask pixels: res_mm is refined

@@ -266,7 +266,8 @@ def plan_toolpath(mask: InkMask, params: ToolpathParams, max_passes: int = MAX_P
         mask: the ink mask.
         params: the toolpath parameters.
         max_passes: the ordering search's budget of 2-opt passes (work, not time).
-        vector: the artwork's own lines (``artwork.vector``; used when compensating).
+        vector: the artwork's own lines (``artwork.vector``; used when compensating), in
+            the artwork's centred frame: they go where the mask was placed.
 
     Returns:
         The toolpath, with the original ordering's figures beside ours.
@@ -277,6 +278,8 @@ def plan_toolpath(mask: InkMask, params: ToolpathParams, max_passes: int = MAX_P
     """
     laps = Laps()
     check_fits(mask, params)
+    if vector is not None:
+        vector = vector.placed(mask.place)
     check_fill_budget(mask, params)
     laps.lap("checks")
     labels, regions = find_regions(
