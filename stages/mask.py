@@ -23,6 +23,7 @@ from tattotronix.config.schema import Config
 from tattotronix.errors import TattotronixError
 from tattotronix.io.artifacts import make_provenance
 from tattotronix.io.outputs import Outputs
+from tattotronix.pipeline import check_reach
 from tattotronix.stage import run_stage
 
 log = logging.getLogger("tattotronix.stages.mask")
@@ -30,7 +31,7 @@ log = logging.getLogger("tattotronix.stages.mask")
 
 def main(cfg: Config, out: Outputs) -> None:
     """Threshold (or edge-detect) the artwork raster where it lies on the panel (refused off
-    it); write the mask, preview and metrics."""
+    it, or out of the arm's reach); write the mask, preview and metrics."""
     name = artwork_name(cfg.artwork)
     src = out.require(out.input("artwork", f"{name}.png"), "artwork")
     try:
@@ -46,6 +47,7 @@ def main(cfg: Config, out: Outputs) -> None:
                                     "artwork"), grey.shape)
     mask, stats = mask_on_panel(grey, grid.res_mm, cfg.mask, cfg.robot.panel.size_mm,
                                 grid.transparent)
+    check_reach(cfg, mask)
     npz = out.path("mask", f"{name}.npz")
     mask.save(out.tmp_path(npz), make_provenance(cfg, {"artwork": src}))
     preview = out.path("mask", f"{name}.png")

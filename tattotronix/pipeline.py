@@ -21,6 +21,7 @@ from tattotronix.art.grid import InkMask
 from tattotronix.art.mask import mask_on_panel
 from tattotronix.art.vector import VectorLines, artwork_lines
 from tattotronix.config.schema import Config, IkConfig
+from tattotronix.errors import TattotronixError
 from tattotronix.kinematics import Chain, IkOptions, IkResult, solve_path
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.plan import check_needle, plan_toolpath
@@ -29,7 +30,7 @@ from tattotronix.trajectory import JointLimits, JointPath, Trajectory, Trajector
 from tattotronix.trajectory import plan_trajectory as _plan_trajectory
 from tattotronix.trajectory.travel import TravelPlanner
 
-__all__ = ["drawing_inputs", "ik_settings", "mask_of", "plan_drawing", "solve_ik",
+__all__ = ["check_reach", "drawing_inputs", "ik_settings", "mask_of", "plan_drawing", "solve_ik",
            "straight_travel_baseline", "trajectory_from_path", "travel_planner"]
 
 log = logging.getLogger("tattotronix.pipeline")
@@ -99,7 +100,8 @@ def mask_of(cfg: Config, source: str | Path | None, name: str) -> InkMask:
     panel).
 
     Raises:
-        TattotronixError: unreadable art, or a mask the settings refuse (one off the panel).
+        TattotronixError: unreadable art, or a mask the settings refuse (one off the panel
+            or out of the arm's reach).
     """
     return drawing_inputs(cfg, source, name)[0]
 
@@ -110,7 +112,8 @@ def drawing_inputs(cfg: Config, source: str | Path | None, name: str
     the artwork and mask stages make them.
 
     Raises:
-        TattotronixError: unreadable art, or a mask the settings refuse (one off the panel).
+        TattotronixError: unreadable art, or a mask the settings refuse (one off the panel
+            or out of the arm's reach).
     """
     m = cfg.mask
     art = load_artwork(source, m.width_mm, m.res_mm, cfg.artwork.max_pixels, name,
@@ -119,9 +122,52 @@ def drawing_inputs(cfg: Config, source: str | Path | None, name: str
                        height_mm=m.height_mm)
     grey = art.as_uint8().astype(np.float64)  # what the artwork stage's PNG holds
     mask, _ = mask_on_panel(grey, art.res_mm, m, cfg.robot.panel.size_mm, art.transparent)
+    check_reach(cfg, mask)
     vector = (artwork_lines(source, art.shape, art.res_mm, cfg.toolpath.step_mm)
               if cfg.artwork.vector else None)
     return mask, vector
+
+
+def check_reach(cfg: Config, mask: InkMask) -> None:
+    """Refuse a drawing the arm cannot reach where it is placed, before any work: the
+    needle on its axis at the marking depth and at the clearance height over each corner
+    of the ink's convex hull, in turn (the far corners of the panel are out of reach).
+
+    Raises:
+        TattotronixError: naming the first corner out of reach and the settings that move
+            the drawing.
+    """
+    import cv2
+
+    from tattotronix.robot.description import build_description
+
+    rows, cols = np.nonzero(mask.ink)
+    if rows.size == 0:
+        return
+    half = mask.res_mm / 2
+    corners = np.concatenate([np.column_stack([mask.xs[cols] + du, mask.ys[rows] + dv])
+                              for du in (-half, half) for dv in (-half, half)])
+    hull = cv2.convexHull(corners.astype(np.float32))[:, 0, :].astype(np.float64)
+    tp = cfg.toolpath
+    uvz = np.concatenate([np.column_stack([hull, np.full(len(hull), z)])
+                          for z in (-float(tp.plunge_mm), float(tp.clearance_mm))])
+    xyz = np.asarray(tp.panel_origin, dtype=np.float64) + uvz / 1000.0
+    ik = cfg.ik
+    res = solve_path(Chain.from_description(build_description(cfg.robot)), xyz,
+                     needle_axis=list(ik.needle_axis), seed=list(ik.seed),
+                     dls_lambda=ik.dls_lambda, max_iter=ik.max_iter, tol=ik.tol,
+                     anchor_spacing_m=ik.anchor_spacing_m)
+    if res.ok:
+        return
+    i = int(res.failed[0])
+    u, v, z = uvz[i]
+    depth = "at the marking depth" if z < 0 else "at the clearance height"
+    raise TattotronixError(
+        f"the drawing is out of the arm's reach where it is placed: the needle cannot reach "
+        f"the ink's corner at panel ({u:.1f}, {v:.1f}) mm {depth} ({res.reason[i]}); move "
+        f"it with mask.at_mm and mask.anchor (the panel's centre is {tp.panel_origin[0] * 1e3:.0f}"
+        " mm from the arm's base, along u), turn it (mask.rotate_deg) or make it smaller; "
+        "nothing was planned")
 
 
 def plan_drawing(cfg: Config, source: str | Path | None, name: str,

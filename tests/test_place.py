@@ -1,7 +1,7 @@
 """The drawing's place on the panel (tattotronix/art/place.py; issue 30, item 2): an anchor
 point lands at ``mask.at_mm``, the drawing turns ``mask.rotate_deg`` about it, its width or
-its height sets its size, and a drawing whose ink leaves the panel is refused at the mask,
-before any work."""
+its height sets its size, and a drawing whose ink leaves the panel, or that the arm cannot
+reach, is refused at the mask, before any work."""
 
 from __future__ import annotations
 
@@ -89,10 +89,10 @@ def test_a_drawing_off_the_panel_is_refused_naming_what_moves_it() -> None:
     with pytest.raises(TattotronixError, match="larger than the 200 x 140 mm panel"):
         mask_of(compose_settings(["mask.width_mm=190", "mask.rotate_deg=90"]), None, "emblem")
     # at the corner, inside: accepted, and its ink's extent is there
-    m = mask_of(compose_settings(["mask.width_mm=60", "mask.anchor=bottom_right",
-                                  "mask.at_mm=[100,-70]"]), None, "emblem")
+    m = mask_of(compose_settings(["mask.width_mm=60", "mask.anchor=bottom_left",
+                                  "mask.at_mm=[-100,-70]"]), None, "emblem")
     u0, u1, v0, v1 = ink_extent_mm(m.ink, m.xs, m.ys, m.res_mm) or (0, 0, 0, 0)
-    assert u1 <= 100 + 1e-6 and v0 >= -70 - 1e-6 and u0 > 30 and v1 < 0
+    assert u0 >= -100 - 1e-6 and v0 >= -70 - 1e-6 and u1 < -30 and v1 < 0
 
 
 def test_the_mask_stage_refuses_an_off_panel_drawing_in_one_line(tmp_path: Path) -> None:
@@ -113,6 +113,24 @@ def test_the_mask_stage_refuses_an_off_panel_drawing_in_one_line(tmp_path: Path)
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and "off the 200 x 140 mm panel" in lines[0], r.stderr
     assert not [p for p in data.rglob("*") if p.parent.name == "mask"]
+
+
+def test_a_drawing_out_of_reach_is_refused_before_any_work() -> None:
+    """The panel's far corners (210 mm out from the base, plus 100) are out of the arm's
+    reach: the small drawing there is refused at its mask, naming the corner and the
+    settings; at the near corners it is drawn."""
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        art = small_art(Path(tmp) / "small.png")
+        far = compose_settings([*SMALL, "mask.anchor=top_right", "mask.at_mm=[100,70]"])
+        with pytest.raises(TattotronixError) as err:
+            mask_of(far, art, "small")
+        near = compose_settings([*SMALL, "mask.anchor=top_left", "mask.at_mm=[-100,70]"])
+        assert mask_of(near, art, "small").ink.any()
+    msg = str(err.value)
+    assert msg.startswith("the drawing is out of the arm's reach where it is placed: ")
+    assert "mask.at_mm" in msg and msg.endswith("nothing was planned")
 
 
 def test_height_sets_the_size_and_both_are_refused() -> None:
