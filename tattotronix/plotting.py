@@ -7,6 +7,7 @@ non-interactive Agg backend: figures are written to files, never shown.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from pathlib import Path
 from types import ModuleType
 from typing import TYPE_CHECKING, Any, Literal
 
@@ -19,7 +20,7 @@ if TYPE_CHECKING:
     from matplotlib.text import Annotation
     from matplotlib.transforms import Bbox
 
-__all__ = ["legend_proxy", "place_labels", "pyplot"]
+__all__ = ["legend_proxy", "pin_fonts", "place_labels", "pyplot"]
 
 _HA = Literal["left", "center", "right"]
 _VA = Literal["bottom", "center", "top"]
@@ -33,13 +34,43 @@ _DIRECTIONS: tuple[tuple[float, float, _HA, _VA], ...] = (
 
 
 def pyplot() -> ModuleType:
-    """``matplotlib.pyplot`` on the Agg backend."""
+    """``matplotlib.pyplot`` on the Agg backend, with the fonts pinned (:func:`pin_fonts`)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    pin_fonts()
     return plt
+
+
+_pinned: list[bool] = []
+
+
+def pin_fonts() -> None:
+    """Draw text with the fonts matplotlib ships, never a system font of the same name.
+
+    matplotlib picks among fonts of one name (DejaVu Sans in its own folder and in
+    ``/usr/share/fonts``) by the order of its font cache, a file shared by every
+    environment of the user and rebuilt by whichever runs first: the same figure came out
+    with a label a pixel apart on two machines, and ``dvc.lock`` differed. Here the
+    shipped fonts go first and their system namesakes are dropped. Once per process.
+    """
+    if _pinned:
+        return
+    import matplotlib
+    from matplotlib import font_manager
+
+    folder = Path(matplotlib.get_data_path()) / "fonts" / "ttf"
+    shipped = [font_manager.ttfFontProperty(font_manager.get_font(str(f)))
+               for f in sorted(folder.glob("*.ttf"))]
+    names = {e.name for e in shipped}
+    fm = font_manager.fontManager
+    fm.ttflist = shipped + [e for e in fm.ttflist if e.name not in names]
+    cached = getattr(font_manager.FontManager, "_findfont_cached", None)
+    if cached is not None and hasattr(cached, "cache_clear"):
+        cached.cache_clear()
+    _pinned.append(True)
 
 
 def legend_proxy(marker: str, colour: str, label: str, ms: float = 6, ls: str = "none",

@@ -4,16 +4,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.collections import LineCollection  # noqa: E402
-from matplotlib.patches import Rectangle  # noqa: E402
-
-from tattotronix.path.path3d import MARK, TRAVEL  # noqa: E402
-from tattotronix.path.plan import Toolpath  # noqa: E402
+from tattotronix.path.path3d import MARK, TRAVEL
+from tattotronix.path.plan import Toolpath
+from tattotronix.plotting import pyplot
 
 __all__ = ["toolpath_figure"]
 
@@ -41,6 +36,10 @@ def toolpath_figure(tp: Toolpath, panel_size_mm: tuple[float, float], path: Path
         entry = np.concatenate([[0], entry])
 
     pw, ph = panel_size_mm
+    plt = pyplot()
+    from matplotlib.collections import LineCollection
+    from matplotlib.patches import Rectangle
+
     fig, ax = plt.subplots(figsize=(10, 10 * ph / pw + 0.9), dpi=150)
     ax.add_patch(Rectangle((-pw / 2, -ph / 2), pw, ph, facecolor="#f4efe6",
                            edgecolor="#8a7f70", lw=1.2, zorder=0))

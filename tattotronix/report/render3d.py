@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.errors import TattotronixError
+from tattotronix.plotting import pin_fonts
 from tattotronix.report.animation import (
     INK_RGB,
     ClipWriter,
@@ -485,6 +486,7 @@ def _font(size_px: tuple[int, int]) -> tuple[Any, Any]:
     from matplotlib import font_manager
     from PIL import ImageFont
 
+    pin_fonts()
     bold = font_manager.findfont(font_manager.FontProperties(weight="bold"))
     regular = font_manager.findfont(font_manager.FontProperties())
     w = size_px[0]
