@@ -37,6 +37,7 @@ from tattotronix.path.path3d import APPROACH, MARK, TRAVEL, Path3D, build_path, 
 from tattotronix.path.plan import Toolpath, plan_toolpath
 from tattotronix.path.polyline import (
     close,
+    equal_chords,
     oriented,
     resample,
     resample_many,
@@ -114,7 +115,8 @@ def seams_reference(
 
 def build_path_reference(strokes: Sequence[NDArray[np.float64]], mask: InkMask,
                          params: ToolpathParams, drag_max_mm: float | None = None) -> Path3D:
-    """The 3-D path joined one stroke at a time, as the planner did it before."""
+    """The 3-D path joined one stroke at a time, as the planner did it before (a drag in
+    equal chords, as it is now)."""
     reach = params.drag_max_mm if drag_max_mm is None else drag_max_mm
     ends = np.array([s[-1] for s in strokes[:-1]]).reshape(-1, 2)
     starts = np.array([s[0] for s in strokes[1:]]).reshape(-1, 2)
@@ -134,7 +136,7 @@ def build_path_reference(strokes: Sequence[NDArray[np.float64]], mask: InkMask,
 
     for s, pts in enumerate(strokes):
         if s > 0 and stay[s - 1]:
-            gap = resample(np.vstack([ends[s - 1], pts[0]]), params.step_mm)[1:-1]
+            gap = equal_chords(ends[s - 1], pts[0], params.step_mm)[0][1:-1]
             if len(gap):
                 put(gap, z_mark, MARK, s)
         else:
@@ -407,3 +409,27 @@ def test_plan_without_cost_matrices_is_the_same(monkeypatch: pytest.MonkeyPatch,
     full = plan_toolpath(mask, params)
     monkeypatch.setattr(costs_mod, "MAX_MATRIX", 0)
     _same_plan(full, plan_toolpath(mask, params))
+
+
+@settings(max_examples=50, deadline=None)
+@given(st.lists(st.tuples(st.floats(-50, 50), st.floats(-50, 50), st.floats(-50, 50),
+                          st.floats(-50, 50)), min_size=1, max_size=8),
+       st.sampled_from([0.05, 0.15, 0.6]))
+def test_equal_chords_cut_each_drag_evenly(lines: list[tuple[float, float, float, float]],
+                                           step: float) -> None:
+    """Each line from its start to its end exactly, in ceil(length / step) chords of one
+    length, none longer than the step (no remainder chord beside a corner); a line with
+    no length is its one end point."""
+    ab = np.array(lines, dtype=np.float64)
+    a, b = ab[:, :2], ab[:, 2:]
+    out, ob = equal_chords(a, b, step)
+    for i in range(len(ab)):
+        p = out[ob[i]:ob[i + 1]]
+        d = float(np.linalg.norm(b[i] - a[i]))
+        assert np.array_equal(p[-1], b[i])
+        if d <= 1e-9:
+            assert len(p) == 1
+            continue
+        chords = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        assert np.array_equal(p[0], a[i]) and len(chords) == math.ceil(d / step - 1e-9)
+        assert chords.max() <= step + 1e-9 and np.ptp(chords) <= 1e-9

@@ -26,7 +26,7 @@ from numpy.typing import NDArray
 from tattotronix.art.grid import InkMask
 from tattotronix.path.costs import SAME_POINT_MM, can_drag
 from tattotronix.path.params import ToolpathParams
-from tattotronix.path.polyline import resample_many
+from tattotronix.path.polyline import equal_chords
 from tattotronix.path.turns import TURN_MAX_STAGGER_MM, TURN_RADIUS_PITCHES, round_turns
 
 __all__ = ["APPROACH", "MARK", "TRAVEL", "Path3D", "build_path", "build_path_flat",
@@ -130,12 +130,10 @@ def build_path_flat(
         m = np.diff(bounds)
         ends, starts = pts[bounds[1:-1] - 1], pts[bounds[1:-1]]
 
-    # the drag across each gap crossed with the needle down, resampled like a stroke
+    # the drag across each gap crossed with the needle down: a straight line in equal
+    # chords no longer than a step (no remainder chord beside the corner it meets)
     drag_k = np.flatnonzero(stay)
-    gap_b = 2 * np.arange(len(drag_k) + 1, dtype=np.intp)
-    gap_src = np.empty((2 * len(drag_k), 2))
-    gap_src[0::2], gap_src[1::2] = ends[drag_k], starts[drag_k]
-    gap_pts, gap_ob = resample_many(gap_src, gap_b, params.step_mm)
+    gap_pts, gap_ob = equal_chords(ends[drag_k], starts[drag_k], params.step_mm)
     if turns is not None and turns.arcs:  # the turns' arcs in place of their straight jogs
         inner = [turns.arcs[k] if k in turns.arcs else gap_pts[gap_ob[i] + 1:gap_ob[i + 1] - 1]
                  for i, k in enumerate(drag_k.tolist())]

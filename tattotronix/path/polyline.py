@@ -12,7 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["close", "length_mm", "oriented", "resample", "resample_many", "rotate_closed",
+__all__ = ["close", "equal_chords", "length_mm", "oriented", "resample", "resample_many",
+           "rotate_closed",
            "smooth_closed", "stations"]
 
 #: passes of the circular [1, 2, 1] / 4 kernel (docs/original.md, "2.3 Outline tracing")
@@ -165,6 +166,34 @@ def _count_below(limit: NDArray[np.float64], step_mm: float, cap: NDArray[np.int
         if not (down.any() or up.any()):
             return c
         c = c - down + up
+
+
+def equal_chords(a_mm: NDArray[np.float64], b_mm: NDArray[np.float64], step_mm: float
+                 ) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """Straight lines from each ``a`` to its ``b`` in equal chords no longer than
+    ``step_mm`` (:func:`resample` would end each with a remainder chord, as short as a few
+    micrometres, beside whatever corner the line meets).
+
+    Args:
+        a_mm, b_mm: (k, 2) the lines' ends, mm.
+        step_mm: the longest chord, mm.
+
+    Returns:
+        ``(out, out_bounds)`` as :func:`resample_many` gives them: line ``i`` is
+        ``out[out_bounds[i]:out_bounds[i + 1]]``, from ``a`` to ``b`` exactly (one point,
+        ``b``, for a line with no length).
+    """
+    a = np.asarray(a_mm, dtype=np.float64).reshape(-1, 2)
+    b = np.asarray(b_mm, dtype=np.float64).reshape(-1, 2)
+    d = np.linalg.norm(b - a, axis=1)
+    chords = np.where(d > _EPS_MM, np.maximum(np.ceil(d / step_mm - 1e-9), 1), 0)
+    sizes = chords.astype(np.intp) + 1
+    ob = np.concatenate([[0], np.cumsum(sizes)]).astype(np.intp)
+    owner = np.repeat(np.arange(len(a)), sizes)
+    frac = (np.arange(int(ob[-1])) - ob[owner]) / np.maximum(chords[owner], 1)
+    out = a[owner] + frac[:, None] * (b - a)[owner]
+    out[ob[1:] - 1] = b  # exactly the end (a line with no length: its one point)
+    return out, ob
 
 
 def resample_many(

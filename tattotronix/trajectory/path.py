@@ -268,8 +268,7 @@ def densify(path: JointPath, chain: Chain, max_step_m: float,
     return JointPath(path.joints, q, tcp, kind, uvz, source)
 
 
-def path_derivatives(q: Array, s: Array, corners: NDArray[np.bool_] | None = None
-                     ) -> tuple[Array, Array]:
+def path_derivatives(q: Array, s: Array) -> tuple[Array, Array]:
     """First and second derivatives of ``q`` with respect to the arc length ``s``.
 
     Three-point finite differences on the non-uniform grid (exact for a quadratic through
@@ -278,19 +277,9 @@ def path_derivatives(q: Array, s: Array, corners: NDArray[np.bool_] | None = Non
     ``q'' = 2 (D+ - D-) / (h- + h+)``. End points take their chord's slope and their
     neighbour's ``q''``.
 
-    At a *corner* the path has no quadratic to be exact for, and the three-point slope
-    leans to the shorter chord: after a 9 um remainder chord, a 90 degree corner's
-    slope is 92 % the short chord's, and the controller's Hermite reference swings 26 um
-    off the 0.1 mm chord that follows (14 um with the plain mean of the two slopes).
-    There ``q'`` is the secant through both neighbours, ``(h- D- + h+ D+) / (h- + h+)``
-    (Catmull-Rom's tangent; the three-point slope when the chords are equal): it leans
-    to the longer chord, where the reference spends the longer time, and the swing off
-    either chord is about 3 um.
-
     Args:
         q: (N, n) joint angles, rad.
         s: (N,) strictly increasing arc length, m.
-        corners: (N,) the points that are corners (:func:`corner_points`); none if None.
 
     Returns:
         ``dq_ds`` (N, n) rad/m and ``d2q_ds2`` (N, n) rad/m^2.
@@ -306,9 +295,6 @@ def path_derivatives(q: Array, s: Array, corners: NDArray[np.bool_] | None = Non
     if n_pts >= 3:
         hm, hp = h[:-1, None], h[1:, None]
         d1[1:-1] = (hm * slope[1:] + hp * slope[:-1]) / (hm + hp)
-        if corners is not None:
-            c = np.flatnonzero(np.asarray(corners, dtype=bool)[1:-1])
-            d1[c + 1] = (hm[c] * slope[c] + hp[c] * slope[c + 1]) / (hm[c] + hp[c])
         d2[1:-1] = 2.0 * (slope[1:] - slope[:-1]) / (hm + hp)
         d2[0], d2[-1] = d2[1], d2[-2]
     return d1, d2

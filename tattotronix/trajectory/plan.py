@@ -525,10 +525,9 @@ def _time_path(path: JointPath, params: TrajectoryParams, limits: JointLimits,
     acceleration while marking and on the approach, and the jerk limit; at rest at both
     ends (and, with a jerk limit, where the needle leaves the ink and where each approach
     begins). ``derivatives``: ``(s, dq, d2q)`` of ``path`` when the caller has them."""
-    corners = corner_points(path.tcp, params.corner_radius_m)
     if derivatives is None:
         s = path.arc_length()
-        dq, d2q = path_derivatives(path.q, s, corners)
+        dq, d2q = path_derivatives(path.q, s)
     else:
         s, dq, d2q = derivatives
     seg = path.segment_kinds()
@@ -536,7 +535,7 @@ def _time_path(path: JointPath, params: TrajectoryParams, limits: JointLimits,
                  params.travel_feed_m_s * params.speed, free)
     tip = None
     if params.tip_accel_m_s2 is not None:
-        dp, d2p = path_derivatives(path.tcp, s, corners)
+        dp, d2p = path_derivatives(path.tcp, s)
         tip = TipLimit(dp, d2p, params.tip_accel_m_s2, seg != TRAVEL)
     # with a jerk limit, the needle comes to rest where it leaves the ink and where each
     # approach begins, and each stretch between is filtered with the window it needs
@@ -691,8 +690,7 @@ def plan_trajectory(path: JointPath, chain: Chain, limits: JointLimits,
     dense = densify(path, chain, params.max_step_m, ik, keep=hops)
     t1 = time.perf_counter()
     s_all = dense.arc_length()
-    dq, d2q = path_derivatives(dense.q, s_all,
-                               corner_points(dense.tcp, params.corner_radius_m))
+    dq, d2q = path_derivatives(dense.q, s_all)
     t2 = time.perf_counter()
     check = speed_limit(dense, dq, d2q, limits, feed_m_s=params.feed_mark_m_s,
                         speed=params.speed, corner_radius_m=params.corner_radius_m)
