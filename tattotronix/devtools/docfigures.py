@@ -4,11 +4,14 @@ After a change that moves the metrics (``dvc repro``), every figure that certify
 before (in the metrics committed at a git revision, ``HEAD`` by default) whose source now
 gives another value is rewritten with that value, at its written precision: also when
 the old figure still traces, by chance, to some other number (a settled mean of 0.99 um
-that became 0.96 still matched an unrelated IoU of 0.99). A figure is rewritten only when the sources that traced it best before (by
-certify's own preference: exact, then a key naming the unit, then a metrics file) agree
-on the new value; the others, the figures that traced to nothing before and the lines
-where the number is not unique, are listed for a person to settle. ``docs/original.md``
-quotes the original's published numbers and is never touched.
+that became 0.96 still matched an unrelated IoU of 0.99). A figure is rewritten only
+when the sources that traced it best before (by certify's own preference: exact, then a
+key naming the unit, then a metrics file) agree on the new value; the others, the figures
+that traced to nothing before and the lines where the number is not unique, are listed
+for a person to settle. ``docs/original.md`` quotes the original's published numbers and
+is never touched. Read the diff: a figure written by hand since the revision, which
+traced there by chance, is rewritten from that chance source. Unitless figures (a cycle
+ratio, a speed factor) are not certify's, so not carried over either.
 
     python -m tattotronix.devtools.docfigures            # rewrite, from HEAD's metrics
     python -m tattotronix.devtools.docfigures --from REV --dry-run
