@@ -133,6 +133,21 @@ def test_a_drawing_out_of_reach_is_refused_before_any_work() -> None:
     assert "mask.at_mm" in msg and msg.endswith("nothing was planned")
 
 
+#: the README's placement example ("The stages")
+README_EXAMPLE = ["mask.width_mm=100", "mask.anchor=top_left", "mask.at_mm=[-95,55]",
+                  "mask.rotate_deg=15"]
+
+
+def test_the_readme_placement_example_fits_the_panel_and_the_reach() -> None:
+    """The example the README gives is accepted as written (its first version left the
+    panel by 1.4 mm once turned)."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert f"python stages/draw.py {' '.join(README_EXAMPLE)}" in readme
+    m = mask_of(compose_settings(README_EXAMPLE), None, "emblem")
+    u0, u1, v0, v1 = ink_extent_mm(m.ink, m.xs, m.ys, m.res_mm) or (0, 0, 0, 0)
+    assert -100 <= u0 < u1 <= 100 and -70 <= v0 < v1 <= 70
+
+
 def test_height_sets_the_size_and_both_are_refused() -> None:
     m = mask_of(compose_settings(["mask.height_mm=40"]), None, "emblem")
     assert m.ink.shape[0] * m.res_mm == pytest.approx(40.0, abs=m.res_mm)
