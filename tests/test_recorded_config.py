@@ -166,7 +166,11 @@ def test_a_change_dvc_does_not_rerun_a_stage_on_leaves_its_bytes(tmp_path: Path)
     assert _mask_run(root) == first
     with np.load(root / "data" / "mask" / "small.npz") as z:
         recorded = json.loads(str(z["provenance"]))["config"]
-    assert sorted(recorded) == ["artwork", "mask"]
+    # the mask stage also checks the arm's reach where the drawing is placed: the panel,
+    # the IK settings and the needle's heights
+    assert sorted(recorded) == ["artwork", "ik", "mask", "robot", "toolpath"]
+    assert sorted(recorded["robot"]) == ["panel"]
+    assert sorted(recorded["toolpath"]) == ["clearance_mm", "panel_origin", "plunge_mm"]
     assert recorded["artwork"] == {"name": "small"}
     assert recorded["mask"]["res_mm"] == 0.1 and recorded["mask"]["width_mm"] == 24.0
     doc["mask"]["edge_k"] = float(doc["mask"]["edge_k"]) + 0.5  # the threshold ignores it
