@@ -19,7 +19,6 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
 
 import cv2
 import numpy as np
@@ -101,8 +100,8 @@ def _rotate(p: NDArray[np.float64], deg: float) -> NDArray[np.float64]:
     return np.asarray(p, dtype=np.float64) @ np.array([[c, s], [-s, c]])
 
 
-def place_grey(grey: NDArray[Any], res_mm: float, place: Placement
-               ) -> tuple[NDArray[Any], NDArray[np.float64], NDArray[np.float64]]:
+def place_grey(grey: NDArray[np.generic], res_mm: float, place: Placement
+               ) -> tuple[NDArray[np.generic], NDArray[np.float64], NDArray[np.float64]]:
     """The artwork raster on the panel: turned (bilinear) on a canvas grown to hold it,
     the new corners in the background tone (the median of the raster's border), and the
     panel coordinates of its columns and rows.
