@@ -9,6 +9,8 @@ in edges mode, and the built-in emblem) and prints, for each:
   with <= without;
 * ``cycle``: the trajectory's duration over its marking-only time (goal <= 1.10);
 * ``bleed``/``cover``: the planned ink against the artwork (worst bleed, mm; coverage);
+* ``missed``: parts of the artwork no ink comes near (a lost line, a dropped region; the
+  toolpath stage names each in a warning); the goal is 0;
 * ``lines``: for stroked lines, the share of each designed centreline the needle covers
   (the worst line; goal >= 95 %, a line drawn as dashes scores far less);
 * with ``--sim``: the worst marking error and the settled mean on MuJoCo over the whole
@@ -143,6 +145,9 @@ def artworks(folder: Path) -> list[Art]:
         Art("text", str(folder / "text.png")),
         Art("lines", lines, (), lines),
         Art("lines-vector", lines, ("artwork.vector=true",), lines),
+        # placed turned on the panel: lines of the needle-compensation threshold's width
+        # come out a hair under or over it along their length (they were lost, issue 30)
+        Art("lines-turned", lines, ("mask.rotate_deg=20",)),
         Art("lineart", "lineart", ("mask.res_mm=0.1",)),
         Art("portrait-edges", "portrait", ("mask.method=edges", "mask.width_mm=110")),
     ]
@@ -176,6 +181,7 @@ def plan_figures(art: Art) -> dict[str, float | int | str | None]:
     """Plan ``art`` with and without compensation, and its trajectory; the figures."""
     from tattotronix.config.params import compose_settings, with_overrides
     from tattotronix.kinematics import Chain
+    from tattotronix.path.fidelity import missed_reach_mm
     from tattotronix.path.params import ToolpathParams
     from tattotronix.path.plan import plan_toolpath
     from tattotronix.pipeline import drawing_inputs, solve_ik, trajectory_from_path
@@ -193,15 +199,20 @@ def plan_figures(art: Art) -> dict[str, float | int | str | None]:
         params = ToolpathParams.from_config(c.toolpath, c.mask, c.robot.panel)
         tps[comp] = plan_toolpath(mask, params, vector=vector)
     tp = tps[cfg.toolpath.compensate]
+    tp_params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
     out["entries"] = tps[True].metrics.entries
     out["entries_uncomp"] = tps[False].metrics.entries
     out["drags"] = tps[True].metrics.drags
     out["drags_uncomp"] = tps[False].metrics.drags
     out["time_s"] = round(tp.metrics.time_s, 1)
     out["travel_mm"] = round(tp.metrics.travel_mm)
-    fid = tp.ink(mask, cfg.toolpath.needle_width_mm, cfg.toolpath.ink_res_mm).fidelity
+    ink = tp.ink(mask, cfg.toolpath.needle_width_mm, cfg.toolpath.ink_res_mm)
+    fid = ink.fidelity
     out["bleed_mm"] = round(fid.bleed_max_mm, 3)
     out["cover"] = round(fid.coverage, 3)
+    needle = float(cfg.toolpath.needle_width_mm)
+    out["missed"] = len(ink.missed(missed_reach_mm(cfg.toolpath.pitch_mm, needle, mask.res_mm),
+                                   needle, bands=tp_params.lines_only))
     if art.lines_svg:
         marking = tp.path.kind == 1
         out["lines_worst"] = round(worst_line(
@@ -240,7 +251,7 @@ def sim_figures(art: Art, folder: Path) -> dict[str, float | int | str | None]:
 
 
 COLUMNS = ("entries", "entries_uncomp", "drags", "drags_uncomp", "time_s", "cycle",
-           "bleed_mm", "cover", "lines_worst", "max_um", "mean_um", "verdict")
+           "bleed_mm", "cover", "missed", "lines_worst", "max_um", "mean_um", "verdict")
 
 
 def run(names: Sequence[str] = (), sim: bool = False, keep: Path | None = None

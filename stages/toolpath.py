@@ -22,6 +22,7 @@ from tattotronix.config.schema import Config
 from tattotronix.io.artifacts import ToolpathRecord, make_provenance
 from tattotronix.io.outputs import Outputs
 from tattotronix.path.export import panel_extent_mm, toolpath_svg
+from tattotronix.path.fidelity import missed_message, missed_reach_mm
 from tattotronix.path.figure import toolpath_figure
 from tattotronix.path.inkfigure import artwork_ink_figure
 from tattotronix.path.params import ToolpathParams
@@ -60,12 +61,19 @@ def main(cfg: Config, out: Outputs) -> None:
     toolpath_figure(
         tp, params.panel_size_mm, out.tmp_path(out.path("figures", name, "toolpath.png")), name
     )
+    figure = out.path("figures", name, "artwork_ink.png")
     artwork_ink_figure(ink.art, ink.ink, ink.grid,
-                       out.tmp_path(out.path("figures", name, "artwork_ink.png")),
+                       out.tmp_path(figure),
                        f"{name}: the planned ink against the artwork (needle "
                        f"{float(cfg.toolpath.needle_width_mm):g} mm wide)", ink.fidelity)
+    reach = missed_reach_mm(params.pitch_mm, needle, mask.res_mm)
+    missed = ink.missed(reach, needle, bands=params.lines_only)
+    if missed:
+        log.warning("toolpath %s", missed_message(name, missed, reach, str(figure)))
     out.write_json(out.path("metrics", "toolpath", f"{name}.json"),
-                   {"name": name, **tp.metrics_dict(), "artwork": ink.fidelity.metrics()})
+                   {"name": name, **tp.metrics_dict(),
+                    "artwork": {**ink.fidelity.metrics(), "missed_parts": len(missed),
+                                "missed": [p.metrics() for p in missed]}})
     out.write_timings("toolpath", name, {"ordering_s": tp.ordering.elapsed_s})
     m, o, f = tp.metrics, tp.original, ink.fidelity
     log.info("toolpath %s against the artwork: bleed %.1f %% (up to %.3f mm), coverage "

@@ -33,7 +33,8 @@ from tattotronix.art.grid import InkMask
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.path.inset import pixel_width
 
-__all__ = ["ArtworkFidelity", "InkGrid", "LineWidth", "PlannedInk", "artwork_fidelity",
+__all__ = ["MISSED_MIN_NEEDLES2", "ArtworkFidelity", "InkGrid", "LineWidth", "MissedPart",
+           "PlannedInk", "artwork_fidelity", "missed_message", "missed_reach_mm",
            "artwork_on", "below_runs", "distance_to", "fidelity_image", "grid_over",
            "line_runs", "line_width", "planned_ink", "rasterise_runs", "save_png"]
 
@@ -255,6 +256,54 @@ def artwork_fidelity(art: Mask, ink: Mask, res_mm: float, outlines: Mask | None 
 
 
 @dataclass(frozen=True)
+class MissedPart:
+    """A part of the artwork no ink comes near (see :meth:`PlannedInk.missed`).
+
+    Attributes:
+        at_mm: its centre (u, v), panel mm. size_mm: its box (width, height), mm.
+        area_mm2: its area beyond the reach, mm^2.
+    """
+
+    at_mm: tuple[float, float]
+    size_mm: tuple[float, float]
+    area_mm2: float
+
+    def metrics(self) -> JsonDict:
+        """JSON-ready."""
+        return {"at_mm": [round(v, 2) for v in self.at_mm],
+                "size_mm": [round(v, 2) for v in self.size_mm],
+                "area_mm2": round(self.area_mm2, 3)}
+
+    def describe(self) -> str:
+        """One phrase that names it: where, and how big."""
+        return (f"{self.size_mm[0]:.1f} x {self.size_mm[1]:.1f} mm at "
+                f"({self.at_mm[0]:.1f}, {self.at_mm[1]:.1f}) mm")
+
+
+def missed_reach_mm(pitch_mm: float, needle_mm: float, mask_res_mm: float) -> float:
+    """How far from any ink a drawn part of the artwork can lie: half the fill's pitch
+    (between two hatch runs) or a needle's width (a sharp corner the needle's round end
+    cannot fill), whichever is more, and two mask pixels (the mask's steps)."""
+    return max(pitch_mm / 2, needle_mm) + 2 * mask_res_mm
+
+
+#: the smallest part reported missed, in needle widths squared
+MISSED_MIN_NEEDLES2 = 4.0
+
+
+def missed_message(name: str, parts: Sequence[MissedPart], reach_mm: float,
+                   figure: str) -> str:
+    """One line naming the parts of ``name``'s artwork its plan leaves without ink."""
+    shown = "; ".join(p.describe() for p in parts[:3])
+    more = f"; and {len(parts) - 3} more" if len(parts) > 3 else ""
+    return (f"{name}: {len(parts)} part(s) of the artwork get no ink within "
+            f"{reach_mm:.2f} mm, so the drawing leaves them out: {shown}{more} (see "
+            f"{figure}; a part narrower than the needle, or smaller than "
+            "mask.min_region_mm2, is not drawn: draw the artwork larger, or use a finer "
+            "mask.res_mm or a narrower toolpath.needle_width_mm)")
+
+
+@dataclass(frozen=True)
 class PlannedInk:
     """A planned path's ink against its artwork.
 
@@ -267,6 +316,40 @@ class PlannedInk:
     ink: Mask
     fidelity: ArtworkFidelity
     grid: InkGrid
+
+    def missed(self, reach_mm: float, needle_mm: float, bands: bool = False
+               ) -> list[MissedPart]:
+        """The parts of the artwork farther than ``reach_mm`` from any ink (8-connected,
+        each at least :data:`MISSED_MIN_NEEDLES2` needle widths squared), largest first:
+        a line the plan lost, a region it dropped. The fill's gaps and the needle's round
+        corners lie within :func:`missed_reach_mm` of the ink, and are not missed.
+
+        ``bands``: every part is drawn as one line along its middle, however wide (the
+        edges of a photograph): the reach grows by the widest band's half-width near
+        each pixel, less half the needle."""
+        reach = np.float32(reach_mm / self.grid.res_mm)
+        if bands:
+            inside = np.asarray(cv2.distanceTransform(self.art.astype(np.uint8),
+                                                      cv2.DIST_L2, 3), dtype=np.float32)
+            half = int(np.ceil(inside.max()))
+            if half > 0:
+                near = cv2.dilate(inside, np.ones((2 * half + 1, 2 * half + 1), np.uint8))
+                needle_px = np.float32(needle_mm / 2 / self.grid.res_mm)
+                reach = reach + np.maximum(near - needle_px, 0)
+        far = self.art & (distance_to(self.ink) > reach)
+        if not far.any():
+            return []
+        n, _, stats, _ = cv2.connectedComponentsWithStats(far.astype(np.uint8), connectivity=8)
+        res = self.grid.res_mm
+        parts = []
+        for k in range(1, n):
+            x, y, w, h, area = (int(v) for v in stats[k, :5])
+            if area * res * res < MISSED_MIN_NEEDLES2 * needle_mm ** 2:
+                continue
+            at = (self.grid.u0_mm + (x + (w - 1) / 2) * res,
+                  self.grid.v0_mm - (y + (h - 1) / 2) * res)
+            parts.append(MissedPart(at, (w * res, h * res), area * res * res))
+        return sorted(parts, key=lambda p: -p.area_mm2)
 
 
 def planned_ink(mask: InkMask, uvz_mm: Array, stroke: NDArray[np.integer],
