@@ -120,6 +120,15 @@ def test_exact_hold_plant_is_python_control_zoh(lam, x) -> None:
     assert ours.dt == ref.dt == x
 
 
+@pytest.mark.parametrize("substeps", [None, 1, 4])
+@pytest.mark.parametrize(("lam", "x"), [(0.21, 0.05), (1.0, 0.3), (2.11, 0.7)])
+def test_the_closed_loop_is_python_control_feedback(lam, x, substeps) -> None:
+    plant, law = analysis._plant(lam, x, substeps), analysis._controller(x)
+    ref = control.feedback(control.ss(plant.A, plant.B, plant.C, plant.D, dt=x),
+                           control.ss(law.A, law.B, law.C, law.D, dt=x), sign=1)
+    np.testing.assert_allclose(analysis._positive_feedback(plant, law), ref.A, atol=1e-13)
+
+
 def test_closed_loop_poles_are_python_control_poles() -> None:
     loop = control.ss(mode_loop_matrix(1.7, 0.2), np.zeros((3, 1)), np.eye(3),
                       np.zeros((3, 1)), dt=0.2)
@@ -169,6 +178,10 @@ def test_euler_substeps_boundary(lam_tune) -> None:
 def test_step_overshoot() -> None:
     pi_d = step_overshoot_pct(derivative_on_error=False)
     pid = step_overshoot_pct(derivative_on_error=True)
+    for num, ours in (([3.0, 1.0], pi_d), ([3.0, 3.0, 1.0], pid)):  # python-control's
+        info = control.step_info(control.tf(num, [1.0, 3.0, 3.0, 1.0]),
+                                 timepts=np.linspace(0.0, 20.0, 20001))
+        assert ours == pytest.approx(float(info["Overshoot"]), abs=1e-5)
     assert pi_d == pytest.approx(24.9, abs=0.05)
     assert pid == pytest.approx(20.6, abs=0.05)
     assert pi_d == pytest.approx(OVERSHOOT_PID_PI_D, abs=0.01)
@@ -244,19 +257,22 @@ def test_bad_arrays_and_options_are_refused() -> None:
         sampled_boundary_numeric(0.1)  # continuous-time unstable: no boundary
 
 
-def test_python_control_is_imported_only_where_a_loop_is_analysed() -> None:
-    """Importing every module of the library (what a stage's start-up imports) leaves
-    python-control out: it costs seconds, and only the loop analysis uses it."""
+def test_python_control_is_left_to_the_figures_and_the_tests() -> None:
+    """Importing every module of the library (what a stage's start-up imports) and
+    analysing a loop (what every simulated drawing and study case does) leave
+    python-control and scipy.signal out: they cost seconds of every stage's start-up.
+    The loop analysis computes what python-control would, in numpy (the tests above hold
+    the two equal)."""
     import subprocess
     import sys
 
-    code = ("import importlib, pkgutil, sys, tattotronix\n"
+    code = ("import importlib, pkgutil, sys, numpy, tattotronix\n"
             "for m in pkgutil.walk_packages(tattotronix.__path__, 'tattotronix.'):\n"
             "    importlib.import_module(m.name)\n"
+            "from tattotronix.control.analysis import loop_report\n"
+            "loop_report(numpy.diag([2.0, 1.0]), [1.0, 1.0], 160.0, 1000.0, 4)\n"
             "print('control' in sys.modules, 'scipy.signal' in sys.modules)\n")
     run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          timeout=300, cwd=Path(__file__).resolve().parents[1])
     assert run.returncode == 0, run.stderr
     assert run.stdout.split() == ["False", "False"], run.stdout
-    analysis.step_overshoot_pct.cache_clear()
-    assert step_overshoot_pct(True) == pytest.approx(20.6, abs=0.05)  # imports it here

@@ -28,15 +28,12 @@ sampled-loop functions work in units ``J = 1``, ``wn = 1`` so that ``T = x``.
 from __future__ import annotations
 
 import math
-from functools import lru_cache
-from typing import TYPE_CHECKING, TypedDict
+from dataclasses import dataclass
+from typing import TypedDict
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.optimize import brentq
-
-if TYPE_CHECKING:  # python-control is imported where a loop is analysed, not at start-up
-    import control
 
 __all__ = [
     "LoopReport",
@@ -196,15 +193,28 @@ def sampled_boundary_wnT(lam_max: float) -> float:
     return 2.0 / (3.0 * _positive("lam_max", lam_max))
 
 
-def _plant(lam: float, x: float, substeps: int | None) -> control.StateSpace:
+@dataclass(frozen=True)
+class SampledSystem:
+    """A discrete-time state-space system ``x+ = A x + B u``, ``y = C x + D u`` of period
+    ``dt`` (python-control's ``StateSpace`` fields, without its per-call overhead, which
+    dominated the boundary search; tests/test_control_analysis.py holds the two equal)."""
+
+    A: Array
+    B: Array
+    C: Array
+    D: Array
+    dt: float
+
+
+def _plant(lam: float, x: float, substeps: int | None) -> SampledSystem:
     """One control period of the mode's plant ``qdd = lam tau`` (J = 1, wn = 1, T = x).
 
     State ``(q, qd)``, input ``tau`` held over the period, output the full state. Both
     discretisations act on the augmented state ``(q, qd, tau)`` with ``tau`` constant:
     the exact hold is the matrix exponential of its generator over ``x`` (what
-    ``control.sample_system(..., "zoh")`` computes, without its per-call overhead, which
-    dominates the boundary search; the generator is nilpotent, ``G^3 = 0``, so the
-    exponential series ends at ``G^2``), Euler the ``N``-th power of one sub-step.
+    ``control.sample_system(..., "zoh")`` computes; the generator is nilpotent,
+    ``G^3 = 0``, so the exponential series ends at ``G^2``), Euler the ``N``-th power of
+    one sub-step.
     """
     if substeps is None:
         gen = x * np.array([[0.0, 1.0, 0.0], [0.0, 0.0, lam], [0.0, 0.0, 0.0]])
@@ -214,29 +224,35 @@ def _plant(lam: float, x: float, substeps: int | None) -> control.StateSpace:
         h = x / substeps
         step = np.array([[1.0, h, lam * h * h], [0.0, 1.0, lam * h], [0.0, 0.0, 1.0]])
         period = np.linalg.matrix_power(step, substeps)
-    import control
-
-    return control.ss(period[:2, :2], period[:2, 2:], np.eye(2), np.zeros((2, 1)), dt=x)
+    return SampledSystem(period[:2, :2], period[:2, 2:], np.eye(2), np.zeros((2, 1)), x)
 
 
-def _controller(x: float) -> control.StateSpace:
+def _controller(x: float) -> SampledSystem:
     """The PI-D law in normalised units (J = 1, wn = 1, T = x), regulating to ``q_r = 0``.
 
     State ``I_{k-1}`` (rad s), input the measurement ``(q, qd)``, output ``tau``:
     ``I_k = I_{k-1} - q T`` and ``tau = -Kp q + Ki I_k - Kd qd``.
     """
     kp, ki, kd = (float(g[0]) for g in pole_placement_gains([1.0], 1.0))
-    import control
+    return SampledSystem(np.array([[1.0]]), np.array([[-x, 0.0]]), np.array([[ki]]),
+                         np.array([[-kp - ki * x, -kd]]), x)
 
-    return control.ss([[1.0]], [[-x, 0.0]], [[ki]], [[-kp - ki * x, -kd]], dt=x)
+
+def _positive_feedback(plant: SampledSystem, law: SampledSystem) -> Array:
+    """The state matrix of ``plant`` with ``law`` in positive feedback (``u = law(y)``,
+    no reference; python-control's ``feedback(plant, law, sign=1)``), state ``(plant's,
+    law's)``. The plant has no feedthrough, so the loop is never algebraic."""
+    top = np.hstack([plant.A + plant.B @ law.D @ plant.C, plant.B @ law.C])
+    bottom = np.hstack([law.B @ plant.C, law.A])
+    return np.vstack([top, bottom])
 
 
 def mode_loop_matrix(lam: float, x: float, substeps: int | None = None) -> Array:
     """The closed-loop map of one mode over one control period, state ``(q, T qd, I/T)``.
 
     Built from the plant's discretisation (exact zero-order hold, or ``N`` semi-implicit
-    Euler sub-steps) closed through the controller law with ``control.feedback``, then
-    expressed in the state ``(q, T qd, I_{k-1}/T)`` (all in rad). It equals
+    Euler sub-steps) closed through the controller law (as ``control.feedback`` closes
+    it), then expressed in the state ``(q, T qd, I_{k-1}/T)`` (all in rad). It equals
     ``A + lam B k`` of the module docstring.
 
     Args:
@@ -254,12 +270,10 @@ def mode_loop_matrix(lam: float, x: float, substeps: int | None = None) -> Array
     lv = _positive("lam", lam)
     xv = _positive("x", x)
     n = _substeps(substeps)
-    import control
-
-    loop = control.feedback(_plant(lv, xv, n), _controller(xv), sign=1)
+    loop = _positive_feedback(_plant(lv, xv, n), _controller(xv))
     # physical state (q, qd, I_{k-1}) -> (q, T qd, I_{k-1} / T)
     scale = np.array([1.0, xv, 1.0 / xv])
-    return np.asarray(scale[:, None] * np.asarray(loop.A) / scale[None, :], dtype=np.float64)
+    return np.asarray(scale[:, None] * loop / scale[None, :], dtype=np.float64)
 
 
 def spectral_radius(lam: float, x: float, substeps: int | None = None) -> float:
@@ -310,24 +324,21 @@ def sampled_boundary_numeric(lam: float, substeps: int | None = None) -> float:
 # ------------------------------------------------------------------------ step response
 
 
-@lru_cache(maxsize=2)
 def step_overshoot_pct(derivative_on_error: bool) -> float:
     """Step overshoot (%) of the single-axis closed loop, independent of J and wn.
 
     PI-D (derivative on the measurement): ``T(s) = (3 s + 1)/(s + 1)^3`` (s in units of
     wn), overshoot ``5/e^3 = 24.9 %``. PID (derivative on the error):
     ``T(s) = (3 s^2 + 3 s + 1)/(s + 1)^3``, overshoot ``(sqrt 3 - 1) e^(sqrt 3 - 3)``
-    = 20.6 %. Computed with ``control.step_info`` on a 1e-3/wn time grid (cached).
+    = 20.6 %. Closed forms: each step response peaks where its derivative vanishes
+    (tests/test_control_analysis.py checks both against ``control.step_info``).
 
     Args:
         derivative_on_error: True for PID (velocity feedforward on), False for PI-D.
     """
-    import control
-
-    num = [3.0, 3.0, 1.0] if derivative_on_error else [3.0, 1.0]
-    sys = control.tf(num, [1.0, 3.0, 3.0, 1.0])
-    info = control.step_info(sys, timepts=np.linspace(0.0, 20.0, 20001))
-    return float(info["Overshoot"])
+    if derivative_on_error:
+        return 100.0 * (math.sqrt(3.0) - 1.0) * math.exp(math.sqrt(3.0) - 3.0)
+    return 500.0 / math.e ** 3
 
 
 # ------------------------------------------------------------------------------ report
