@@ -25,14 +25,8 @@ from tattotronix.art.artwork import artwork_name
 from tattotronix.config.schema import Config
 from tattotronix.io.artifacts import RunLogRecord, TrajectoryRecord, run_label
 from tattotronix.io.outputs import Outputs
-from tattotronix.report.animation import (
-    DrawingClip,
-    RenderResult,
-    drawing_clip,
-    mp4_available,
-    render_drawing,
-)
-from tattotronix.report.render3d import render_drawing_3d, select_gl
+from tattotronix.report.animation import DrawingClip, RenderResult, drawing_clip, mp4_available
+from tattotronix.report.render3d import render_drawing_both, select_gl
 from tattotronix.robot.description import build_description
 from tattotronix.stage import run_stage
 from tattotronix.trajectory import load_trajectory
@@ -64,10 +58,10 @@ def main(cfg: Config, out: Outputs) -> None:
                         cfg.toolpath.panel_origin, run_label=f"the simulated run ({BACKEND})",
                         **run)
     fig_dir = out.path("figures", name)
-    res = render_drawing(clip, *_videos(out, fig_dir, "drawing", name))
-    _log_render(name, "drawing (2-D)", clip, res)
-    res = render_drawing_3d(clip, mjcf, *_videos(out, fig_dir, "drawing3d", name))
-    _log_render(name, f"drawing3d (MuJoCo, MUJOCO_GL={gl or 'its default'})", clip, res)
+    two_d, three_d = render_drawing_both(clip, mjcf, _videos(out, fig_dir, "drawing", name),
+                                         _videos(out, fig_dir, "drawing3d", name))
+    _log_render(name, "drawing (2-D)", clip, two_d)
+    _log_render(name, f"drawing3d (MuJoCo, MUJOCO_GL={gl or 'its default'})", clip, three_d)
 
 
 def _videos(out: Outputs, fig_dir: Path, stem: str, name: str) -> tuple[Path, Path | None]:

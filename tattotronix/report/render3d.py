@@ -44,6 +44,7 @@ from tattotronix.report.animation import (
     DrawingClip,
     RenderResult,
     needle_label,
+    render_drawing,
 )
 from tattotronix.robot.loaders import load_mujoco_spec
 
@@ -54,6 +55,7 @@ __all__ = [
     "DrawingScene",
     "arm_camera",
     "render_drawing_3d",
+    "render_drawing_both",
     "select_gl",
 ]
 
@@ -535,3 +537,35 @@ def render_drawing_3d(clip: DrawingClip, mjcf: Path, gif: Path | None = None,
     log.debug("3-D drawing rendered with MUJOCO_GL=%s", os.environ.get("MUJOCO_GL", ""))
     return RenderResult(frames=n, gif=gif, gif_frames=sink.gif_frames, mp4=sink.mp4,
                         wall_s=time.perf_counter() - t0, timings_s=timings)
+
+
+def _no_ctrl_c() -> None:
+    """The worker leaves Ctrl-C to the stage, which ends the worker as it stops."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def render_drawing_both(clip: DrawingClip, mjcf: Path,
+                        videos_2d: tuple[Path | None, Path | None],
+                        videos_3d: tuple[Path | None, Path | None]
+                        ) -> tuple[RenderResult, RenderResult]:
+    """The 2-D rendering (:func:`tattotronix.report.animation.render_drawing`) and the 3-D
+    one (:func:`render_drawing_3d`), each to its (GIF, MP4): at once when this process may
+    use two cores (the 3-D one in a forked process, before any OpenGL context exists, so
+    it makes its own), else one after the other. Each writes the same bytes either way.
+
+    Raises:
+        TattotronixError: as either rendering.
+    """
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
+        os.cpu_count() or 1)
+    if cores < 2:
+        return render_drawing(clip, *videos_2d), render_drawing_3d(clip, mjcf, *videos_3d)
+    import multiprocessing
+
+    # a Pool, not a bare Process: leaving the block (a Ctrl-C, an error here) ends the worker
+    with multiprocessing.get_context("fork").Pool(1, _no_ctrl_c) as pool:
+        three_d = pool.apply_async(render_drawing_3d, (clip, mjcf, *videos_3d))
+        two_d = render_drawing(clip, *videos_2d)
+        return two_d, three_d.get()
