@@ -89,3 +89,29 @@ def test_a_lazy_import_does_not_move_the_code_version_of_an_entry_point() -> Non
     same, version = out.stdout.split()
     assert same == "True"
     assert version == version_of_stamp(stamps(ROOT)["robot"])
+
+
+def test_parsed_imports_are_kept_between_processes_and_a_bad_entry_is_read_again(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The closure read through the cache of parsed imports is the closure parsed from the
+    source: filled, read back, with a corrupt entry, and with no cache at all."""
+    from tattotronix.io import codegraph
+
+    root = Path(__file__).resolve().parents[1]
+    entry = root / "stages" / "draw.py"
+    monkeypatch.setenv("TATTOTRONIX_CODEGRAPH_CACHE", "0")
+    parsed = codegraph.CodeGraph(root).closure(entry)
+    monkeypatch.setenv("TATTOTRONIX_CODEGRAPH_CACHE", "1")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert codegraph.CodeGraph(root).closure(entry) == parsed  # filled
+    kept = sorted((tmp_path / "tattotronix").rglob("*.json"))
+    assert len(kept) >= len([p for p in parsed if p.suffix == ".py"])
+    assert codegraph.CodeGraph(root).closure(entry) == parsed  # read back
+    for p in kept:
+        p.write_text("not json")
+    assert codegraph.CodeGraph(root).closure(entry) == parsed  # parsed again
+    assert json.loads(kept[0].read_text())  # and kept again
+    blocked = tmp_path / "a-file"
+    blocked.write_text("")
+    monkeypatch.setenv("XDG_CACHE_HOME", str(blocked))  # no cache can be made there
+    assert codegraph.CodeGraph(root).closure(entry) == parsed

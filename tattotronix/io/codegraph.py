@@ -19,9 +19,12 @@ code version (:func:`tattotronix.io.provenance.code_version`).
 from __future__ import annotations
 
 import ast
+import functools
 import hashlib
+import json
 import os
 import shlex
+import sys
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -75,6 +78,58 @@ def _imports_of(tree: ast.AST, package: str) -> tuple[set[str], set[str]]:
     return found, strings
 
 
+def _cache_folder() -> Path | None:
+    """Where parsed imports are kept between processes (None: nowhere): the user's cache
+    (``$XDG_CACHE_HOME`` or ``~/.cache``), per Python version (its ``ast`` reads the
+    source); ``TATTOTRONIX_CODEGRAPH_CACHE=0`` turns it off."""
+    if os.environ.get("TATTOTRONIX_CODEGRAPH_CACHE", "1") == "0":
+        return None
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "tattotronix" / f"codegraph-py{sys.version_info[0]}{sys.version_info[1]}"
+
+
+def _file_name_like(text: str) -> bool:
+    """A string constant that could name a file beside the module (what
+    :meth:`CodeGraph._package_data` looks for): no path separator, no line break."""
+    return 0 < len(text) <= 255 and "/" not in text and "\n" not in text
+
+
+@functools.cache
+def _parser_key() -> bytes:
+    """The hash of this module's own source: an edit to how imports are read makes every
+    kept entry a miss."""
+    return hashlib.sha256(Path(__file__).read_bytes()).digest()
+
+
+def _parsed_imports(source: bytes, package: str, filename: str) -> tuple[set[str], set[str]]:
+    """:func:`_imports_of` the source (its file-name-like strings only), parsed once per
+    content: a file's imports are a function of its bytes, its package and this module's
+    code, so they are kept in :func:`_cache_folder` under the hash of the three, and a
+    start-up that would parse every module of the closure again (a second or two) reads
+    them back instead."""
+    folder = _cache_folder()
+    key = hashlib.sha256(_parser_key() + package.encode() + b"\0" + source).hexdigest()
+    entry = folder / f"{key}.json" if folder is not None else None
+    if entry is not None:
+        try:
+            found, strings = json.loads(entry.read_text(encoding="utf-8"))
+            return set(found), set(strings)
+        except (OSError, ValueError, TypeError):
+            pass
+    tree = ast.parse(source, filename=filename)
+    found, strings = _imports_of(tree, package)
+    strings = {t for t in strings if _file_name_like(t)}
+    if entry is not None:
+        try:
+            entry.parent.mkdir(parents=True, exist_ok=True)
+            tmp = entry.with_name(f".{entry.name}.{os.getpid()}.tmp")
+            tmp.write_text(json.dumps([sorted(found), sorted(strings)]), encoding="utf-8")
+            os.replace(tmp, entry)
+        except OSError:
+            pass  # a read-only home: parsed each time, as before
+    return found, strings
+
+
 @dataclass(frozen=True)
 class _Module:
     name: str
@@ -107,9 +162,8 @@ class CodeGraph:
         mod = self._parsed.get(name)
         if mod is None:
             path, is_pkg = self.paths[name]
-            tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
             package = name if is_pkg else name.rpartition(".")[0]
-            found, strings = _imports_of(tree, package)
+            found, strings = _parsed_imports(path.read_bytes(), package, str(path))
             mod = self._parsed[name] = _Module(name, path, is_pkg, frozenset(found),
                                                frozenset(strings))
         return mod
@@ -133,8 +187,7 @@ class CodeGraph:
         files = {entry}
         todo: list[str] = list(entry_imports)
         if entry.suffix == ".py" and entry.is_file():
-            tree = ast.parse(entry.read_text(encoding="utf-8"), filename=str(entry))
-            found, _ = _imports_of(tree, "")
+            found, _ = _parsed_imports(entry.read_bytes(), "", str(entry))
             todo.extend(d for d in found if d)  # a script's relative imports resolve nowhere
         seen: set[str] = set()
         plugins = False
