@@ -123,3 +123,35 @@ def test_random_drawings_take_fewer_entries_and_keep_the_ink_inside() -> None:
     # needle inside the artwork cannot join (the uncompensated drags cut across its edge)
     assert entries[:, 1].sum() <= entries[:, 0].sum(), entries.tolist()
     assert (entries[:, 1] <= entries[:, 0] + 5).all()
+
+
+def zigzag_mask(width_px: int, turn_deg: float, res_mm: float = 0.1) -> InkMask:
+    """Line art as users draw it: zigzags (sharp 53 degree vertices) of a stroke
+    ``width_px`` wide, turned ``turn_deg`` about the centre, on a ``res_mm`` grid."""
+    n = int(60 / res_mm)
+    img = np.zeros((n, n), np.uint8)
+    for row in range(3):
+        y0 = 12 + 18 * row
+        pts = np.array([[6 + 4 * k, y0 + (4 if k % 2 else -4)] for k in range(12)], float)
+        cv2.polylines(img, [np.rint(pts / res_mm * 16).astype(np.int32)], False, 1,
+                      width_px, cv2.LINE_8, shift=4)
+    turn = cv2.getRotationMatrix2D((n / 2, n / 2), turn_deg, 1.0)
+    img = cv2.warpAffine(img.astype(np.float32), turn, (n, n), flags=cv2.INTER_LINEAR)
+    return InkMask.centred(img >= 0.5, res_mm)
+
+
+@pytest.mark.parametrize(("width_px", "turn_deg", "most"),
+                         [(3, 0.0, 3), (4, 20.0, 5), (4, 35.0, 9), (7, 20.0, 9)])
+def test_a_zigzag_runs_on_through_its_corners(width_px: int, turn_deg: float,
+                                              most: int) -> None:
+    """A zigzag's vertex is wider than its legs: its skeleton grows a spur toward the
+    vertex's tip, and a knot or two of skeleton crumbs, and a thick vertex gets an inset
+    of its own. The spur is pruned (up to three half-widths long), the crumbs dropped and
+    the vertex drawn along the line, so the line runs on through its corners, and
+    compensation takes no more entries than the original's strokes. Before, every leg was
+    a stroke of its own: 29 entries on the artworks benchmark's line art turned 20
+    degrees, against 23 without compensation; now 15."""
+    mask = zigzag_mask(width_px, turn_deg)
+    plain, comp = _plans(mask, PARAMS)
+    assert comp.metrics.entries <= plain.metrics.entries
+    assert comp.metrics.entries <= most  # three zigzags

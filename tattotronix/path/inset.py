@@ -64,6 +64,9 @@ FINE_PER_NEEDLE = 6
 INSET_MARGIN_PX = 1.0
 LOOP_SMOOTH_PASSES = 12
 LOOP_TOLERANCE_PX = 0.25
+#: the largest thick part taken as a line's corner or join (drawn along the line's
+#: centreline), in ``toolpath.line_max_mm`` each way
+JOIN_MAX_LINE_MAX = 2.0
 #: how far inside the inset's edge the hatch runs, in needle widths: one, so its ink meets
 #: the outlines' ink edge to edge and the drags joining its runs have a needle's width of
 #: room (measured: 0 gave the emblem 80 needle entries against 48 without compensation,
@@ -203,6 +206,49 @@ def _specks(binary: NDArray[np.bool_], min_px: int) -> NDArray[np.bool_]:
     return out.astype(bool) & binary
 
 
+def _line_joins(inset: NDArray[np.bool_], thin: NDArray[np.bool_], fill_px: float,
+                half_px: float, r_px: float, max_px: float) -> NDArray[np.bool_]:
+    """The components of ``inset`` that belong to a line: with no fill (no pixel
+    ``fill_px`` from their edge), either small (no wider than ``max_px`` either way: a
+    corner or join, wider than the line's legs) or a sliver (no pixel ``r_px`` from their
+    edge: a stretch of a line about ``line_max`` wide, which comes out of the mask a hair
+    over the threshold here and under it there), and joined to line art (``thin``, a piece
+    at least ``2 half_px`` each way) through other such parts within ``half_px`` of it."""
+    none = np.zeros(inset.shape, dtype=bool)
+    n, comp, stats, _ = cv2.connectedComponentsWithStats(inset.astype(np.uint8),
+                                                          connectivity=8)
+    if n <= 1:
+        return none
+    inside = _distance(inset) - 0.5
+    candidate = np.ones(n, dtype=bool)
+    candidate[0] = False
+    candidate[np.unique(comp[inside >= fill_px])] = False
+    small = (stats[:, cv2.CC_STAT_WIDTH] <= max_px) & (stats[:, cv2.CC_STAT_HEIGHT] <= max_px)
+    sliver = np.ones(n, dtype=bool)
+    sliver[np.unique(comp[inside >= r_px])] = False
+    candidate &= small | sliver
+    if not candidate.any():
+        return none
+    m, lines, lstats, _ = cv2.connectedComponentsWithStats(thin.astype(np.uint8),
+                                                            connectivity=8)
+    long_lines = lstats[:, cv2.CC_STAT_AREA] >= (2 * half_px) ** 2
+    long_lines[0] = False
+    if not long_lines.any():
+        return none
+    # the candidates and the line art, each grown by the thick part's reach: the parts
+    # of one line touch
+    r = int(math.ceil(half_px)) + 1
+    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r + 1, 2 * r + 1))
+    grown = cv2.dilate(candidate[comp].astype(np.uint8), disc).astype(bool)
+    k, joined = cv2.connectedComponents((grown | thin).astype(np.uint8), connectivity=8)
+    on_line = np.zeros(k, dtype=bool)
+    on_line[np.unique(joined[long_lines[lines]])] = True
+    on_line[0] = False
+    hit = np.zeros(n, dtype=bool)
+    hit[np.unique(comp[on_line[joined] & inset])] = True
+    return (candidate & hit)[comp]
+
+
 def _region_of(labels: NDArray[np.int32], where: NDArray[np.bool_]) -> int:
     """The region label most of ``where`` lies on (0: none)."""
     counts = np.bincount(labels[where], minlength=1)
@@ -267,13 +313,21 @@ def compensate(labels: NDArray[np.int32], mask: InkMask, needle_mm: float, line_
     # a part barely line_max wide (a 0.6 mm line turned 20 degrees) has a core of specks
     # whose insets are too small to outline: without them it is line art, drawn along its
     # centreline (with them it was neither, and was lost)
-    specks = _specks(inset, min_loop_px * factor)
-    if specks.any():
-        inset &= ~specks
-        core &= ~specks
+    fill_px = FILL_INSET_NEEDLES * needle_mm / grid.res_mm
+    drop = _specks(inset, min_loop_px * factor)
+    if line_max_mm > 0 and not lines_only:
+        # a line's corner or join is wider than its legs (a zigzag's vertex), and a line
+        # about line_max wide is over it in stretches: such a thick part with no fill on
+        # a piece of line art is drawn along the line's centreline, so the line runs
+        # through it in one stroke instead of stopping at it
+        thin = smooth & ~(to_core <= half_px)
+        drop |= _line_joins(inset & ~drop, thin, fill_px, half_px, r_px,
+                            JOIN_MAX_LINE_MAX * line_max_mm / grid.res_mm)
+    if drop.any():
+        inset &= ~drop
+        core &= ~drop
         to_core = _distance(~core) if core.any() else np.full(art.shape, np.inf, np.float32)
     inset_labels = np.where(inset, fine, 0).astype(np.int32)
-    fill_px = FILL_INSET_NEEDLES * needle_mm / grid.res_mm
     fill_labels = np.where(_distance(inset) - 0.5 >= fill_px, inset_labels, 0).astype(np.int32)
 
     loops = _component_loops(inset, fine, grid, min_loop_px * factor)
@@ -285,6 +339,7 @@ def compensate(labels: NDArray[np.int32], mask: InkMask, needle_mm: float, line_
         if vector is not None:
             thin &= ~_vector_lines(vector, fine, grid, line_max_mm, lines, widths)
         _centrelines(thin, smooth, fine, depth, grid, line_max_mm, lines, widths)
+        _drop_crumbs(lines, widths, loops, line_max_mm / 2)
     safe = InkMask(depth >= r_px, grid.res_mm, grid.xs, grid.ys)
     return Compensated(grid, safe, inset_labels, fill_labels, loops, lines, widths)
 
@@ -311,13 +366,42 @@ def _centrelines(thin: NDArray[np.bool_], art: NDArray[np.bool_], fine: NDArray[
         lab = _region_of(fine[y:y + h, x:x + w], comp[y:y + h, x:x + w] == k)
         if lab == 0:
             continue  # the smoothed artwork's, not the mask's
-        for stroke in skeleton_strokes(skel, prune_px=line_px / 2):
+        for stroke in skeleton_strokes(skel, prune_px=line_px / 2,
+                                       depth=depth[r0:r1, c0:c1] + 0.5):
             rc = stroke + np.array([r0, c0])
             if len(rc) < 2:
                 continue
             lines.setdefault(lab, []).append(_smooth_open(grid.to_mm(rc)))
             width = pixel_width(depth[rc[:, 0], rc[:, 1]] + 0.5, grid.res_mm)
             widths.setdefault(lab, []).append(width)
+
+
+def _arc_mm(p: Loop) -> float:
+    return float(np.linalg.norm(np.diff(p, axis=0), axis=1).sum()) if len(p) > 1 else 0.0
+
+
+def _drop_crumbs(lines: dict[int, list[Loop]], widths: dict[int, list[NDArray[np.float64]]],
+                 loops: dict[int, tuple[list[Loop], list[Loop]]], crumb_mm: float) -> None:
+    """Remove the crumbs from ``lines`` (and their ``widths``): centreline strokes shorter
+    than ``crumb_mm`` within ``crumb_mm`` of a longer stroke or an outline of their
+    region. They are knots of the skeleton where a line turns or meets a thick part;
+    their ink is the neighbour's, and each drawn apart costs a needle entry. A short
+    stroke on its own (a dot, a dash) is kept."""
+    for lab, strokes in lines.items():
+        length = [_arc_mm(s) for s in strokes]
+        short = [i for i, n in enumerate(length) if n < crumb_mm]
+        if not short:
+            continue
+        outers, holes = loops.get(lab, ([], []))
+        others = [s for i, s in enumerate(strokes) if length[i] >= crumb_mm] + outers + holes
+        if not others:
+            continue
+        near = np.vstack(others)
+        gone = {i for i in short
+                if np.sqrt(((strokes[i][:, None, :] - near[None]) ** 2).sum(axis=2)).min()
+                <= crumb_mm}
+        lines[lab] = [s for i, s in enumerate(strokes) if i not in gone]
+        widths[lab] = [w for i, w in enumerate(widths[lab]) if i not in gone]
 
 
 def _vector_lines(vector: VectorLines, fine: NDArray[np.int32], grid: FineGrid,
