@@ -471,3 +471,33 @@ def test_stage_missing_ik_names_the_ik_stage(tmp_path: Path) -> None:
     assert res.returncode == 2
     assert "'ik' stage" in res.stderr and len(res.stderr.strip().splitlines()) == 1
     assert not list(tmp_path.rglob("*.npz"))
+
+
+def test_the_tip_comes_to_rest_where_it_turns_back_while_marking(
+        chain: Chain, desc: RobotDescription) -> None:
+    """A stroke joined to the next by a short drag the other way is a cusp: the jerk-
+    limited law stops there, so the controller's reference turns back from rest (passed
+    at speed, one on the built-in line art went at 3 mm/s and left the line by 20.8 um;
+    stopped, 14.9 um)."""
+    from tattotronix.trajectory.path import cusp_points
+
+    # as on the line art: a line coming in at 20 degrees, a 0.05 mm drag back to the start
+    # of a hatch run, and the run going out the way the drag came in
+    k = np.arange(40, 0, -1)[:, None] * 0.15
+    come = k * np.array([np.cos(np.radians(20.0)), np.sin(np.radians(20.0))])
+    run = np.column_stack([-0.05 + np.arange(0.0, 6.0, 0.15), np.zeros(40)])
+    uv = np.vstack([come, [[0.0, 0.0]], run])
+    u, v = uv[:, 0], uv[:, 1]
+    turn = len(come) + 1  # the drag's end, where the run begins
+    uvz = np.column_stack((u, v, np.full_like(u, -1.5)))
+    xyz = np.array([0.21, 0.0, SURFACE]) + uvz / 1000.0
+    path = _solved(chain, xyz, np.ones(len(u), np.int8), uvz)
+    on = np.ones(len(u) - 1, bool)
+    assert cusp_points(path.tcp, on).tolist() == [turn]  # the turn into the drag is not one
+    assert cusp_points(path.tcp, ~on).size == 0  # only while marking
+    params = replace(TrajectoryParams.from_config(compose_settings()), travel="straight")
+    assert params.jerk_rad_s3 is not None  # the default law: jerk-limited
+    traj = plan_trajectory(path, chain, _limits(desc, params), params)
+    tip_speed = np.linalg.norm(np.gradient(traj.tcp, traj.t, axis=0), axis=1)
+    at = int(np.argmin(np.linalg.norm(traj.tcp - path.tcp[turn], axis=1)))
+    assert tip_speed[at] < 0.02 * params.feed_mark_m_s

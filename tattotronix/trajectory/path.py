@@ -44,6 +44,7 @@ __all__ = [
     "TRAVEL",
     "JointPath",
     "corner_points",
+    "cusp_points",
     "densify",
     "path_derivatives",
     "segment_kinds",
@@ -305,6 +306,26 @@ def corner_points(tcp: Array, corner_radius_m: float) -> NDArray[np.bool_]:
     :data:`CORNER_RADIUS_TOL` (a bend drawn at exactly that radius is held at the feed,
     and read back from IK tip points it is a hair under it)."""
     return turn_radii(tcp) < corner_radius_m * (1.0 - CORNER_RADIUS_TOL)
+
+
+def cusp_points(tcp: Array, on: NDArray[np.bool_], angle_deg: float = 150.0
+                ) -> NDArray[np.int64]:
+    """Interior points where the tip path turns back by more than ``angle_deg`` (a
+    cusp: a stroke joined to the next by a short drag the other way) with both chords on
+    ``on`` segments ((N - 1,) bool; the marking); ascending, none next to another."""
+    n_pts = len(tcp)
+    if n_pts < 3:
+        return np.zeros(0, dtype=np.int64)
+    d = np.diff(tcp, axis=0)
+    h = np.linalg.norm(d, axis=1)
+    cos = np.einsum("ij,ij->i", d[:-1], d[1:]) / np.maximum(h[:-1] * h[1:], 1e-300)
+    hit = (cos < math.cos(math.radians(angle_deg))) & on[:-1] & on[1:]
+    hit &= (h[:-1] > 0) & (h[1:] > 0)
+    keep: list[int] = []
+    for i in (np.flatnonzero(hit) + 1).tolist():
+        if not keep or i - keep[-1] > 1:
+            keep.append(i)
+    return np.asarray(keep, dtype=np.int64)
 
 
 def turn_radii(tcp: Array) -> Array:

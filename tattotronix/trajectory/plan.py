@@ -53,6 +53,7 @@ from tattotronix.trajectory.path import (
     TRAVEL,
     JointPath,
     corner_points,
+    cusp_points,
     densify,
     path_derivatives,
     segment_kinds,
@@ -524,7 +525,8 @@ def _time_path(path: JointPath, params: TrajectoryParams, limits: JointLimits,
     blended moves, bound by the joint limits alone), the joint limits, the tip's
     acceleration while marking and on the approach, and the jerk limit; at rest at both
     ends (and, with a jerk limit, where the needle leaves the ink and where each approach
-    begins). ``derivatives``: ``(s, dq, d2q)`` of ``path`` when the caller has them."""
+    begins, and where the tip turns back while marking). ``derivatives``: ``(s, dq,
+    d2q)`` of ``path`` when the caller has them."""
     if derivatives is None:
         s = path.arc_length()
         dq, d2q = path_derivatives(path.q, s)
@@ -537,9 +539,18 @@ def _time_path(path: JointPath, params: TrajectoryParams, limits: JointLimits,
     if params.tip_accel_m_s2 is not None:
         dp, d2p = path_derivatives(path.tcp, s)
         tip = TipLimit(dp, d2p, params.tip_accel_m_s2, seg != TRAVEL)
-    # with a jerk limit, the needle comes to rest where it leaves the ink and where each
-    # approach begins, and each stretch between is filtered with the window it needs
-    rests = _travel_ends(seg) if params.jerk_rad_s3 is not None else None
+    # with a jerk limit, the needle comes to rest where it leaves the ink, where each
+    # approach begins and where the tip turns back while marking (a cusp: passed at
+    # speed, the tip acceleration's bound over its short chords let a 180 degree turn go
+    # at 3 mm/s, and the controller left the line by 20.8 um there), and each stretch
+    # between is filtered with the window it needs
+    rests = None
+    if params.jerk_rad_s3 is not None:
+        ends = _travel_ends(seg)
+        cusps = cusp_points(path.tcp, seg == MARK)
+        clear = np.abs(cusps[:, None] - ends[None, :]).min(axis=1) > 1 if ends.size else (
+            np.ones(cusps.size, dtype=bool))
+        rests = np.union1d(ends, cusps[clear])  # none next to another
     law = time_parameterise(s, dq, d2q, caps, limits, tip=tip,
                             jerk_rad_s3=params.jerk_rad_s3, rests=rests)
     law.check(limits, jerk_rad_s3=params.jerk_rad_s3, tip=tip)
