@@ -509,7 +509,8 @@ def _emblem_mask(data: Path) -> None:
 
 
 def test_a_needle_wider_than_the_artwork_is_refused(tmp_path: Path) -> None:
-    """The built-in emblem at toolpath.needle_width_mm=8: 73 % of the ink outside it."""
+    """The built-in emblem at toolpath.needle_width_mm=8: about 73 % of the ink outside
+    it (72.7 % since line art runs on through its corners)."""
     data = tmp_path / "data"
     _emblem_mask(data)
     before = _files(data)
@@ -517,8 +518,10 @@ def test_a_needle_wider_than_the_artwork_is_refused(tmp_path: Path) -> None:
                "toolpath.needle_width_mm=8")
     assert r.returncode == 2, r.stderr
     line = _one_line(r, "toolpath: error: toolpath.needle_width_mm=8 cannot draw this "
-                        "artwork: 73.")
+                        "artwork: ")
     assert "% of the ink it would lay down falls outside the artwork" in line
+    share = float(line.split("cannot draw this artwork: ", 1)[1].split(" %", 1)[0])
+    assert 70.0 < share < 76.0, line
     assert _files(data) == before
 
 

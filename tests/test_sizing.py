@@ -81,11 +81,14 @@ def test_an_svg_with_a_physical_size_is_drawn_at_it_unless_a_width_is_set(tmp_pa
 
 
 def test_thin_strokes_at_the_default_resolution_are_whole_lines_not_dashes(tmp_path):
-    """The issue's dashes: 0.5 to 0.65 mm lines at 0.25 mm/px were planned as dashes. With
-    the pitch chosen from the thinnest stroke the needle passes along every whole line."""
+    """The issue's dashes: 0.5 to 0.65 mm lines at 0.25 mm/px were planned as dashes (23
+    to 45 % of each line). With the pitch chosen from the thinnest stroke the needle
+    passes along every whole line. Since a core too small to outline is line art and a
+    line runs on through its corners, even the coarse grid (refinement off) draws them
+    whole: measured 0.999 of the worst line, where it was under 0.8."""
     svg = _waves(tmp_path, (0.5, 0.65))
-    res, dashed = _line_shares(svg, "mask.min_line_px=0")
-    assert res == MASK.res_mm and dashed.min() < 0.8  # the failure this guards against
+    res, coarse = _line_shares(svg, "mask.min_line_px=0")
+    assert res == MASK.res_mm and coarse.min() >= 0.95, coarse
 
     res, shares = _line_shares(svg)
     assert res < MASK.res_mm and 0.5 / res >= MASK.min_line_px
