@@ -199,7 +199,6 @@ def plan_figures(art: Art) -> dict[str, float | int | str | None]:
         params = ToolpathParams.from_config(c.toolpath, c.mask, c.robot.panel)
         tps[comp] = plan_toolpath(mask, params, vector=vector)
     tp = tps[cfg.toolpath.compensate]
-    tp_params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
     out["entries"] = tps[True].metrics.entries
     out["entries_uncomp"] = tps[False].metrics.entries
     out["drags"] = tps[True].metrics.drags
@@ -212,7 +211,7 @@ def plan_figures(art: Art) -> dict[str, float | int | str | None]:
     out["cover"] = round(fid.coverage, 3)
     needle = float(cfg.toolpath.needle_width_mm)
     out["missed"] = len(ink.missed(missed_reach_mm(cfg.toolpath.pitch_mm, needle, mask.res_mm),
-                                   needle, bands=tp_params.lines_only))
+                                   needle, bands=params.lines_only))
     if art.lines_svg:
         marking = tp.path.kind == 1
         out["lines_worst"] = round(worst_line(

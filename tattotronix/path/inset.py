@@ -30,6 +30,11 @@ it):
   room, so most such joins left ``safe`` and became needle entries (issue 30: 48 -> 80 on
   the emblem). An inset narrower than two needles gets no hatch: its outlines' ink
   covers it all but a strip up to a needle wide along its middle.
+* **line pieces of the inset**: an inset part too small to outline (a speck of a line
+  about ``line_max`` wide), and one with no fill that is a line's corner or join (at most
+  :data:`JOIN_MAX_LINE_MAX` ``line_max`` across, or a sliver) joined to line art, are
+  taken out of the core: their part is line art, so the line is drawn all along, in one
+  stroke through its corners.
 * **safe**: where ``d >= needle / 2``: the needle may drag across a gap only along a
   line inside it.
 * **centrelines**: each piece of line art at least ``line_max`` long is skeletonised

@@ -37,6 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.errors import TattotronixError
+from tattotronix.io.workers import ignore_ctrl_c, usable_cores
 from tattotronix.plotting import pin_fonts
 from tattotronix.report.animation import (
     INK_RGB,
@@ -539,13 +540,6 @@ def render_drawing_3d(clip: DrawingClip, mjcf: Path, gif: Path | None = None,
                         wall_s=time.perf_counter() - t0, timings_s=timings)
 
 
-def _no_ctrl_c() -> None:
-    """The worker leaves Ctrl-C to the stage, which ends the worker as it stops."""
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
 def render_drawing_both(clip: DrawingClip, mjcf: Path,
                         videos_2d: tuple[Path | None, Path | None],
                         videos_3d: tuple[Path | None, Path | None]
@@ -558,14 +552,12 @@ def render_drawing_both(clip: DrawingClip, mjcf: Path,
     Raises:
         TattotronixError: as either rendering.
     """
-    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
-        os.cpu_count() or 1)
-    if cores < 2:
+    if usable_cores() < 2:
         return render_drawing(clip, *videos_2d), render_drawing_3d(clip, mjcf, *videos_3d)
     import multiprocessing
 
     # a Pool, not a bare Process: leaving the block (a Ctrl-C, an error here) ends the worker
-    with multiprocessing.get_context("fork").Pool(1, _no_ctrl_c) as pool:
+    with multiprocessing.get_context("fork").Pool(1, ignore_ctrl_c) as pool:
         three_d = pool.apply_async(render_drawing_3d, (clip, mjcf, *videos_3d))
         two_d = render_drawing(clip, *videos_2d)
         return two_d, three_d.get()

@@ -54,7 +54,6 @@ from __future__ import annotations
 import json
 import logging
 import math
-import os
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
@@ -81,6 +80,7 @@ from tattotronix.hardware.servo_loop import run_servo_loop
 from tattotronix.io.artifacts import StudySeriesRecord, make_provenance
 from tattotronix.io.jsontypes import JsonDict, JsonValue
 from tattotronix.io.outputs import Outputs
+from tattotronix.io.workers import ignore_ctrl_c, usable_cores
 from tattotronix.kinematics import Chain
 from tattotronix.plotting import pyplot
 from tattotronix.robot.description import RobotDescription, build_description
@@ -424,13 +424,6 @@ def _one(run: CaseRun, cfg: Config, data: Path) -> CaseResult | str:
         return str(exc)
 
 
-def _ignore_ctrl_c() -> None:
-    """A worker leaves Ctrl-C to the stage, which stops the pool (and so the worker)."""
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
 def run_parallel(run: CaseRun, cases: Mapping[str, Config], data: Path,
                  workers: int | None = None) -> list[CaseResult]:
     """``run`` on every case's config, in a pool of ``workers`` forked processes (default: one
@@ -443,8 +436,7 @@ def run_parallel(run: CaseRun, cases: Mapping[str, Config], data: Path,
         TattotronixError: a case refused; the message names it (the first, in order).
     """
     if workers is None:
-        workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (
-            os.cpu_count() or 1)
+        workers = usable_cores()
     configs = list(cases.values())
     workers = max(1, min(len(configs), workers))
     if workers == 1:
@@ -455,7 +447,7 @@ def run_parallel(run: CaseRun, cases: Mapping[str, Config], data: Path,
         warm_up()  # the shared imports, once, before the fork
         # a Pool, not a ProcessPoolExecutor: leaving the block terminates the workers, so a
         # Ctrl-C stops every case at once instead of running the queued ones first
-        with multiprocessing.get_context("fork").Pool(workers, _ignore_ctrl_c) as pool:
+        with multiprocessing.get_context("fork").Pool(workers, ignore_ctrl_c) as pool:
             outcomes = pool.starmap(_one, [(run, c, data) for c in configs], chunksize=1)
     for case, outcome in zip(cases, outcomes, strict=True):
         if isinstance(outcome, str):

@@ -48,6 +48,7 @@ __all__ = [
     "densify",
     "path_derivatives",
     "segment_kinds",
+    "spaced",
     "turn_radii",
 ]
 
@@ -321,8 +322,14 @@ def cusp_points(tcp: Array, on: NDArray[np.bool_], angle_deg: float = 150.0
     cos = np.einsum("ij,ij->i", d[:-1], d[1:]) / np.maximum(h[:-1] * h[1:], 1e-300)
     hit = (cos < math.cos(math.radians(angle_deg))) & on[:-1] & on[1:]
     hit &= (h[:-1] > 0) & (h[1:] > 0)
+    return spaced(np.flatnonzero(hit) + 1)
+
+
+def spaced(points: NDArray[np.integer]) -> NDArray[np.int64]:
+    """Ascending ``points`` less each one right after one kept (rest points of a time
+    law: a stretch between two rests needs a point inside it)."""
     keep: list[int] = []
-    for i in (np.flatnonzero(hit) + 1).tolist():
+    for i in np.asarray(points, dtype=np.int64).tolist():
         if not keep or i - keep[-1] > 1:
             keep.append(i)
     return np.asarray(keep, dtype=np.int64)

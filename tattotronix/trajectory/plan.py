@@ -57,6 +57,7 @@ from tattotronix.trajectory.path import (
     densify,
     path_derivatives,
     segment_kinds,
+    spaced,
     turn_radii,
 )
 from tattotronix.trajectory.timelaw import (
@@ -560,12 +561,7 @@ def _time_path(path: JointPath, params: TrajectoryParams, limits: JointLimits,
 def _travel_ends(seg: NDArray[np.int8]) -> NDArray[np.int64]:
     """Interior points where travel begins or ends, none next to another."""
     travel = seg == TRAVEL
-    ends = np.flatnonzero(travel[:-1] != travel[1:]) + 1
-    keep: list[int] = []
-    for i in ends.tolist():
-        if not keep or i - keep[-1] > 1:
-            keep.append(i)
-    return np.asarray(keep, dtype=np.int64)
+    return spaced(np.flatnonzero(travel[:-1] != travel[1:]) + 1)
 
 
 def _up_tangent(path: JointPath, i: int, j: int) -> Array:
