@@ -53,11 +53,11 @@ from contextlib import contextmanager
 from pathlib import Path
 from types import FrameType
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
 from tattotronix import end_import_guard
 from tattotronix.config.dvclock import guard as guard_lock
-from tattotronix.config.params import load_params, one_line, to_settings
+from tattotronix.config.params import load_settings, one_line, to_settings
 from tattotronix.config.schema import Config
 from tattotronix.config.tracked import override_keys, stage_names, tracked_params
 from tattotronix.errors import ConfigError, Interrupted, TattotronixError
@@ -166,12 +166,12 @@ def _interrupted(name: str, signum: int, message: str) -> SystemExit:
     return SystemExit(exit_code(signum))
 
 
-def _execute(name: str, body: StageBody, cfg: DictConfig,
+def _execute(name: str, body: StageBody, cfg: DictConfig | Config,
              sweep_overrides: list[str] | None = None) -> None:
     _setup_logging()
     t0 = time.perf_counter()
-    try:
-        settings = to_settings(cfg)  # the one conversion: typed and frozen from here on
+    try:  # the one conversion: typed and frozen from here on
+        settings = cfg if isinstance(cfg, Config) else to_settings(cfg)
     except ConfigError as exc:
         raise _refuse(name, str(exc)) from None
     if sweep_overrides is not None and settings.draw.progress:
@@ -194,18 +194,6 @@ def _execute(name: str, body: StageBody, cfg: DictConfig,
                       "or a smaller drawing") from None
     log.info("%s", out.report(name))
     log.info("%s: done in %.2f s", name, time.perf_counter() - t0)
-
-
-def _validated(cfg: DictConfig) -> DictConfig:
-    """Merge into the root schema (a second guard for configs Hydra did not type)."""
-    try:
-        plain = OmegaConf.to_container(cfg, resolve=True)
-        merged = OmegaConf.merge(OmegaConf.structured(Config), plain)
-    except Exception as exc:
-        raise ConfigError(f"bad configuration: {one_line(exc)}") from None
-    assert isinstance(merged, DictConfig)
-    OmegaConf.set_readonly(merged, True)
-    return merged
 
 
 def run_stage(name: str, body: StageBody) -> None:
@@ -240,20 +228,19 @@ def _run(name: str, body: StageBody) -> None:
     stage = os.environ.get("DVC_STAGE")
     if stage:
         try:
-            cfg = load_params(argv, root=Path.cwd())
-            params = plain_config(cfg)
+            settings = load_settings(argv, root=Path.cwd())
+            params = plain_config(settings)
             keys = tracked_params(stage, Path.cwd(), params) + override_keys(argv)
             # never build on a dvc.lock an interrupt cut short (config/dvclock.py)
             guard_lock(Path.cwd(), stage_names(Path.cwd(), params))
         except ConfigError as exc:
             raise _refuse(name, str(exc)) from None
-        OmegaConf.set_readonly(cfg, True)  # load_params has merged it into the schema
         # what DVC reruns the stage on is all its outputs may record: its params
         # (config/tracked.py) and its code, the stamp it depends on (devtools/codedeps.py)
         definition = stage.rpartition(":")[2].split("@")[0]
-        stamp = Path(str(cfg.paths.data)) / "code" / f"{definition}.txt"
+        stamp = Path(settings.paths.data) / "code" / f"{definition}.txt"
         with recorded_keys(keys), fixed_code_version(stamp_version(stamp)):
-            _execute(name, body, cfg)
+            _execute(name, body, settings)
         return
 
     import hydra
@@ -273,11 +260,7 @@ def _run(name: str, body: StageBody) -> None:
     def _main(cfg: DictConfig) -> None:
         nonlocal started
         started = True
-        try:
-            checked = _validated(cfg)
-        except ConfigError as exc:
-            raise _refuse(name, str(exc)) from None
-        _execute(name, body, checked, _sweep_overrides())
+        _execute(name, body, cfg, _sweep_overrides())
 
     # Hydra reports a bad command line (an override it cannot parse, an unknown key, a
     # value of the wrong type) over several lines; with HYDRA_FULL_ERROR it raises the

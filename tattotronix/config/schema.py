@@ -33,13 +33,15 @@ still run on the built-in emblem (README, "Configuration").
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
+import types
+import typing
 from collections.abc import Callable
 from dataclasses import FrozenInstanceError, dataclass, field
 from enum import Enum
 from typing import Any, TypeAlias, TypeVar, dataclass_transform, overload
 
-from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING
 
 from tattotronix.io.outputs import PIPELINE_DATA
@@ -51,6 +53,7 @@ __all__ = [
     "Backend",
     "BenchConfig",
     "BoxInertial",
+    "build_exact",
     "CollisionConfig",
     "Config",
     "ControlCase",
@@ -66,6 +69,7 @@ __all__ = [
     "KinematicsStudyConfig",
     "MaskConfig",
     "MaskMethod",
+    "NotExact",
     "MassModel",
     "PanelConfig",
     "PathsConfig",
@@ -149,6 +153,102 @@ def _plain(value: object) -> Plain:
         return [_plain(v) for v in value]
     assert value is None or isinstance(value, bool | int | float | str), value
     return value
+
+
+class NotExact(ValueError):
+    """:func:`build_exact` does not take this value as it stands (OmegaConf may still
+    convert it, or refuse it with its own message)."""
+
+
+def build_exact(cls: type[_T], plain: object, key: str = "") -> _T:
+    """The settings object of ``cls`` from plain containers whose every value already has
+    its field's type (what :func:`to_dict` gives, ``params.yaml`` holds, or a YAML scalar
+    parses to): the object OmegaConf's merge into the schema and ``to_object`` would build,
+    in milliseconds instead of the second theirs take.
+
+    Exact means: a ``float`` field takes an int or a float (as a float), every other field
+    only its own type; an enum its member's name; a missing key the field's default. A
+    value it does not take this way (a string for a number, an unknown key, a missing
+    mandatory value, an interpolation) raises :class:`NotExact`, and the caller goes the
+    OmegaConf way, which converts it or refuses it with its message. Ranges are not
+    checked here (:func:`out_of_range`).
+    """
+    if not isinstance(plain, dict):
+        raise NotExact(f"{key or cls.__name__}: a mapping, not {type(plain).__name__}")
+    hints = _hints(typing.cast(Any, cls))
+    unknown = set(plain) - set(hints)
+    if unknown:
+        raise NotExact(f"{key}: unknown keys {sorted(map(str, unknown))}")
+    kwargs: dict[str, object] = {}
+    for f in dataclasses.fields(cls):  # type: ignore[arg-type]
+        name = f"{key}.{f.name}" if key else f.name
+        if f.name in plain:
+            kwargs[f.name] = _exact(hints[f.name], plain[f.name], name)
+        elif f.default_factory is not dataclasses.MISSING:
+            kwargs[f.name] = f.default_factory()
+        elif f.default is dataclasses.MISSING or f.default == MISSING:
+            raise NotExact(f"{name}: missing")
+        else:
+            kwargs[f.name] = f.default
+    return cls(**kwargs)
+
+
+@functools.cache
+def _hints(cls: Any) -> dict[str, Any]:
+    return typing.get_type_hints(cls)
+
+
+def _exact(hint: Any, value: object, key: str) -> object:
+    origin = typing.get_origin(hint)
+    if hint is Any:
+        if isinstance(value, str) and "${" in value:
+            raise NotExact(f"{key}: an interpolation")
+        return _plain_copy(value, key)
+    if origin in (types.UnionType, typing.Union):
+        args = [a for a in typing.get_args(hint) if a is not type(None)]
+        if value is None:
+            return None
+        if len(args) != 1:
+            raise NotExact(f"{key}: a union")
+        return _exact(args[0], value, key)
+    if origin is list:
+        (item,) = typing.get_args(hint)
+        if not isinstance(value, list):
+            raise NotExact(f"{key}: a list, not {type(value).__name__}")
+        return [_exact(item, v, f"{key}[{i}]") for i, v in enumerate(value)]
+    if origin is dict:
+        k_type, item = typing.get_args(hint)
+        if not isinstance(value, dict) or k_type is not str:
+            raise NotExact(f"{key}: a mapping, not {type(value).__name__}")
+        return {k: _exact(item, v, f"{key}.{k}") for k, v in value.items()
+                if isinstance(k, str) or _raise(f"{key}: a key {k!r}")}
+    if isinstance(hint, type) and dataclasses.is_dataclass(hint):
+        return build_exact(hint, value, key)
+    if isinstance(hint, type) and issubclass(hint, Enum):
+        if isinstance(value, str) and value in hint.__members__:
+            return hint[value]
+        raise NotExact(f"{key}: not a name of {hint.__name__}")
+    if isinstance(value, str) and "${" in value:
+        raise NotExact(f"{key}: an interpolation")
+    if hint is float and isinstance(value, int | float) and not isinstance(value, bool):
+        return float(value)
+    if hint in (bool, int, str) and type(value) is hint:
+        return value
+    raise NotExact(f"{key}: {type(value).__name__} for {getattr(hint, '__name__', hint)}")
+
+
+def _raise(message: str) -> bool:
+    raise NotExact(message)
+
+
+def _plain_copy(value: object, key: str) -> object:
+    if isinstance(value, dict):
+        return {str(k): _plain_copy(v, key) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_plain_copy(v, key) for v in value]
+    if value is None or isinstance(value, bool | int | float | str):
+        return value
+    raise NotExact(f"{key}: {type(value).__name__}")
 
 
 #: a joint angle's bound, rad (a full turn either way)
@@ -1030,6 +1130,8 @@ def register() -> None:
 
     Each group's schema is stored as ``<group>/_schema``; the root as ``_config_schema``.
     """
+    from hydra.core.config_store import ConfigStore  # here: a stage run by DVC needs no Hydra
+
     cs = ConfigStore.instance()
     for group, node in SCHEMAS.items():
         cs.store(group=group, name="_schema", node=node)

@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.errors import TattotronixError
-from tattotronix.io.workers import ignore_ctrl_c, usable_cores
+from tattotronix.io.workers import usable_cores, worker_signals
 from tattotronix.plotting import pin_fonts
 from tattotronix.report.animation import (
     INK_RGB,
@@ -557,7 +557,7 @@ def render_drawing_both(clip: DrawingClip, mjcf: Path,
     import multiprocessing
 
     # a Pool, not a bare Process: leaving the block (a Ctrl-C, an error here) ends the worker
-    with multiprocessing.get_context("fork").Pool(1, ignore_ctrl_c) as pool:
+    with multiprocessing.get_context("fork").Pool(1, worker_signals) as pool:
         three_d = pool.apply_async(render_drawing_3d, (clip, mjcf, *videos_3d))
         two_d = render_drawing(clip, *videos_2d)
         return two_d, three_d.get()

@@ -80,7 +80,7 @@ from tattotronix.hardware.servo_loop import run_servo_loop
 from tattotronix.io.artifacts import StudySeriesRecord, make_provenance
 from tattotronix.io.jsontypes import JsonDict, JsonValue
 from tattotronix.io.outputs import Outputs
-from tattotronix.io.workers import ignore_ctrl_c, usable_cores
+from tattotronix.io.workers import usable_cores, worker_signals
 from tattotronix.kinematics import Chain
 from tattotronix.plotting import pyplot
 from tattotronix.robot.description import RobotDescription, build_description
@@ -447,7 +447,7 @@ def run_parallel(run: CaseRun, cases: Mapping[str, Config], data: Path,
         warm_up()  # the shared imports, once, before the fork
         # a Pool, not a ProcessPoolExecutor: leaving the block terminates the workers, so a
         # Ctrl-C stops every case at once instead of running the queued ones first
-        with multiprocessing.get_context("fork").Pool(workers, ignore_ctrl_c) as pool:
+        with multiprocessing.get_context("fork").Pool(workers, worker_signals) as pool:
             outcomes = pool.starmap(_one, [(run, c, data) for c in configs], chunksize=1)
     for case, outcome in zip(cases, outcomes, strict=True):
         if isinstance(outcome, str):
