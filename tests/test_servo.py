@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from tattotronix.config.params import compose_settings
 from tattotronix.config.schema import Config
@@ -135,6 +137,25 @@ def test_a_large_step_runs_at_the_no_load_speed(
     t90 = float(run.t[np.argmax(x >= 0.9 * step)]) - 1.0 / FRAME_HZ
     assert t90 == pytest.approx(0.9 * step / spec.speed_rad_s, rel=0.25)
     assert x[-1] == pytest.approx(step, abs=1e-4)  # and it lands (no dead band)
+
+
+@given(steps=st.lists(st.sampled_from([-2e-3, -1e-3, 0.0, 0.0, 1e-3, 2.5e-3]), min_size=1,
+                      max_size=400),
+       reps=st.integers(1, 40), width=st.sampled_from([1e-3, 2e-3, 0.0173]),
+       start=st.one_of(st.none(), st.floats(-0.05, 0.05)))
+@settings(max_examples=40, deadline=None)
+def test_the_play_operator_in_blocks_is_the_one_step_at_a_time(
+        steps: list[float], reps: int, width: float, start: float | None) -> None:
+    """Over many blocks (a whole drawing's steps), with ties and still stretches: the same
+    numbers, bit for bit, as one step at a time."""
+    from tattotronix.plants.servo_plant import _play_blocks, _play_steps
+
+    x = np.cumsum(np.tile(steps, reps * 40))  # up to 640,000 samples
+    h = 0.5 * width
+    y0 = float(x[0]) if start is None else start
+    one_by_one = _play_steps(x - h, x + h, y0).tobytes()
+    assert _play_blocks(x - h, x + h, y0).tobytes() == one_by_one
+    assert play(x, width, start).tobytes() == one_by_one
 
 
 def test_backlash_is_the_play_operator() -> None:

@@ -158,6 +158,53 @@ def test_counts_never_leave_the_limits(q: list[float], osc: float) -> None:
             )
 
 
+def _fitted(cal: Calibration) -> Calibration:
+    """``cal`` with a measured pulse map (a bent servo's) on every servo of joint 2."""
+    from dataclasses import replace
+
+    from tattotronix.hardware.servos import PulseFit
+
+    widths = np.linspace(600.0, 2400.0, 9)
+    deg = np.degrees((widths - 1500.0) / 636.62) + 3.0 * np.sin(np.pi * (widths - 600) / 1800)
+    fit = PulseFit(tuple(zip(widths.tolist(), deg.tolist(), strict=True)), 3)
+    j2 = cal.joint("joint_2")
+    joints = tuple(replace(j, a=replace(j.a, fit=fit),
+                           b=None if j.b is None else replace(j.b, fit=fit))
+                   if j is j2 else j for j in cal.joints)
+    return replace(cal, joints=joints)
+
+
+@given(
+    q=st.lists(st.lists(st.one_of(st.floats(-4.0, 4.0), st.floats(-1e300, 1e300),
+                                  st.sampled_from([math.inf, -math.inf, 0.0, 1.5707963])),
+                        min_size=5, max_size=5), min_size=1, max_size=40),
+    osc=st.floats(23e6, 27e6),
+    fitted=st.booleans(),
+)
+def test_a_whole_program_counts_as_frame_by_frame(q: list[list[float]], osc: float,
+                                                  fitted: bool) -> None:
+    """``count_table`` (a program's counts at once) is ``counts`` row by row, exactly."""
+    cal = _fitted(DEFAULT_CALIBRATION) if fitted else DEFAULT_CALIBRATION
+    count_us = (121 + 1) / osc * 1e6
+    table = cal.count_table(np.array(q), count_us)
+    rows = [[cal.counts(row, count_us)[ch] for ch in cal.channels()] for row in q]
+    assert table.dtype == np.int64 and table.tolist() == rows
+
+
+def test_a_whole_program_refuses_as_a_frame_does() -> None:
+    q = np.zeros((3, 5))
+    q[2, 2] = math.nan
+    with pytest.raises(ValueError, match="joint_3: commanded angle is NaN"):
+        DEFAULT_CALIBRATION.count_table(q, COUNT_US)
+    with pytest.raises(ValueError, match="expected 5 joint angles"):
+        DEFAULT_CALIBRATION.count_table(np.zeros((3, 4)), COUNT_US)
+    with pytest.raises(ValueError, match="count_us"):
+        DEFAULT_CALIBRATION.count_table(np.zeros((3, 5)), 0.0)
+    tight = ServoChannel(0, 1500.0, 636.62, 1499.0, 1502.0)
+    with pytest.raises(CalibrationError, match="no PCA9685 count"):
+        tight.count_array(np.zeros(4), COUNT_US)
+
+
 # ------------------------------------------------------------------------------- validation
 
 

@@ -167,8 +167,7 @@ def compile_program(t: Array, q: Array, qd: Array, calib: Calibration, lower: Ar
     qf, rate_clamped = rate_clamp(qf, qf[0], max_step)
     sent = qf if adjust is None else adjust(qf)
     channels = calib.channels()
-    counts = np.array([[c[ch] for ch in channels] for c in
-                       (calib.counts(row, count_us) for row in sent)], dtype=np.int64)
+    counts = calib.count_table(sent, count_us)
     return ServoProgram(t=tf, q=qf, counts=counts, channels=channels, frame_hz=frame_hz,
                         count_us=count_us, range_clamped=range_clamped,
                         rate_clamped=rate_clamped, q_sent=sent)

@@ -400,8 +400,7 @@ class ServoChannel:
             CalibrationError: no count width lies within ``[min_us, max_us]``.
             ValueError: NaN angle, or ``count_us`` not finite and positive.
         """
-        if not _is_number(count_us) or not math.isfinite(count_us) or count_us <= 0:
-            raise ValueError(f"count_us must be a finite positive width in us, got {count_us!r}")
+        _check_count_us(count_us)
         c = round_half_away(self.pulse_us(angle_rad) / count_us)
         if c * count_us > self.max_us + _TOL_US:
             c -= 1
@@ -409,12 +408,45 @@ class ServoChannel:
             c += 1
         if not (0 <= c < COUNTS
                 and self.min_us - _TOL_US <= c * count_us <= self.max_us + _TOL_US):
-            raise CalibrationError([
-                f"servo on channel {self.channel}: no PCA9685 count of {count_us:.4g} us lies "
-                f"within [min_us, max_us] = [{self.min_us}, {self.max_us}] (0...4095 counts):"
-                " widen the limits or lower the frame rate"
-            ])
+            raise self._no_count(count_us)
         return c
+
+    def count_array(self, angle_rad: np.ndarray, count_us: float) -> np.ndarray:
+        """:meth:`counts` of each of an array of angles (rad, none NaN), as int64: the same
+        operations in the same order, element by element, so the same counts.
+
+        Raises:
+            CalibrationError: no count width lies within ``[min_us, max_us]``.
+            ValueError: ``count_us`` not finite and positive.
+        """
+        _check_count_us(count_us)
+        x = np.asarray(angle_rad, dtype=np.float64)
+        if self.fit is not None:
+            pulse = self.fit.pulse_us(np.minimum(1e3, np.maximum(-1e3, x)))
+        else:
+            pulse = self.zero_us + self.us_per_rad * x
+        pulse = np.minimum(self.max_us, np.maximum(self.min_us, pulse))
+        r = pulse / count_us
+        c = np.where(r >= 0, np.floor(r + 0.5), -np.floor(-r + 0.5))  # round_half_away
+        c = c - (c * count_us > self.max_us + _TOL_US)
+        c = c + (c * count_us < self.min_us - _TOL_US)
+        width = c * count_us
+        if not np.all((c >= 0) & (c < COUNTS) & (width >= self.min_us - _TOL_US)
+                      & (width <= self.max_us + _TOL_US)):
+            raise self._no_count(count_us)
+        return c.astype(np.int64)
+
+    def _no_count(self, count_us: float) -> CalibrationError:
+        return CalibrationError([
+            f"servo on channel {self.channel}: no PCA9685 count of {count_us:.4g} us lies "
+            f"within [min_us, max_us] = [{self.min_us}, {self.max_us}] (0...4095 counts):"
+            " widen the limits or lower the frame rate"
+        ])
+
+
+def _check_count_us(count_us: float) -> None:
+    if not _is_number(count_us) or not math.isfinite(count_us) or count_us <= 0:
+        raise ValueError(f"count_us must be a finite positive width in us, got {count_us!r}")
 
 
 @dataclass(frozen=True)
@@ -569,6 +601,27 @@ class Calibration:
         for j, x in zip(self.joints, self._angles(q_rad), strict=True):
             out.update(j.counts(x, count_us))
         return out
+
+    def count_table(self, q_rad: np.ndarray, count_us: float) -> np.ndarray:
+        """:meth:`counts` of every row of ``q_rad`` (frames, joints): an (frames, channels)
+        int64 array, columns in :meth:`channels` order. The same counts as row by row
+        (``tests/test_servos.py``), in milliseconds for a whole program, not seconds.
+
+        Raises:
+            ValueError: a row of the wrong length, a NaN angle, or a bad ``count_us``.
+            CalibrationError: no count lies within some servo's limits.
+        """
+        q = np.asarray(q_rad, dtype=np.float64)
+        if q.ndim != 2 or q.shape[1] != len(self.joints):
+            self._angles(q[0] if q.ndim == 2 and len(q) else q)  # its message
+            raise ValueError(f"expected frames x {len(self.joints)} joint angles, got the "
+                             f"shape {q.shape}")
+        for i, j in enumerate(self.joints):
+            if np.isnan(q[:, i]).any():
+                raise ValueError(f"{j.joint}: commanded angle is NaN")
+        cols = [s.count_array(q[:, i], count_us)
+                for i, j in enumerate(self.joints) for s in j.servos()]
+        return np.stack(cols, axis=1) if cols else np.zeros((len(q), 0), dtype=np.int64)
 
     def positions(self, counts: Mapping[int, int], count_us: float) -> np.ndarray:
         """The joint angles (rad) that sent counts stand for (servo ``a``'s count per joint).
