@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import shlex
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -89,6 +90,14 @@ def test_every_study_case_gets_the_settings_omegaconf_builds() -> None:
         assert fast == slow and _typed(fast) == _typed(slow), overrides
 
 
+def _outcome(build: Callable[..., Config], *args: object) -> Config | str:
+    """The settings ``build(*args)`` gives, or the message it refuses with."""
+    try:
+        return build(*args)
+    except ConfigError as exc:
+        return str(exc)
+
+
 @pytest.mark.parametrize("overrides", [
     ["controller.wn=120"],  # an int for a float: 120.0 both ways
     ["controller.wn='120'"],  # a string OmegaConf converts
@@ -103,14 +112,8 @@ def test_every_study_case_gets_the_settings_omegaconf_builds() -> None:
     ["controller.wn=-5"],  # out of range: refused either way
 ])
 def test_overrides_the_exact_way_does_not_take_end_as_before(overrides: list[str]) -> None:
-    try:
-        slow: Config | str = _slow(overrides)
-    except ConfigError as exc:
-        slow = str(exc)
-    try:
-        fast: Config | str = load_settings(overrides, ROOT)
-    except ConfigError as exc:
-        fast = str(exc)
+    slow = _outcome(_slow, overrides)
+    fast = _outcome(load_settings, overrides, ROOT)
     if isinstance(slow, str):
         assert fast == slow
     else:
@@ -128,14 +131,8 @@ def test_study_overrides_end_as_omegaconf_ends_them(overrides: list[str]) -> Non
                                  OmegaConf.from_dotlist(overrides))
     except Exception:  # noqa: BLE001 (OmegaConf's refusal, which ours words)
         merged = None
-    try:
-        slow: Config | str = to_settings(merged) if merged is not None else "bad configuration"
-    except ConfigError as exc:
-        slow = str(exc)
-    try:
-        fast: Config | str = with_overrides(cfg, overrides)
-    except ConfigError as exc:
-        fast = str(exc)
+    slow = (_outcome(to_settings, merged) if merged is not None else "bad configuration")
+    fast = _outcome(with_overrides, cfg, overrides)
     if isinstance(slow, str):
         assert isinstance(fast, str) and fast.startswith(slow)
     else:
