@@ -19,6 +19,7 @@ from hypothesis import strategies as st
 from numpy.typing import NDArray
 
 import tattotronix.path.costs as costs_mod
+import tattotronix.path.order as order_mod
 from tattotronix.art.grid import InkMask
 from tattotronix.config.schema import MaskConfig, PanelConfig, ToolpathConfig
 from tattotronix.path.costs import SAME_POINT_MM, TransitionCosts, can_drag
@@ -27,8 +28,10 @@ from tattotronix.path.order import (
     _endpoints,
     _ends,
     _greedy,
+    _greedy_near,
     _optimise_seams,
     _Precedence,
+    _transitions,
     _two_opt,
     original_order,
 )
@@ -383,6 +386,51 @@ def test_build_path_matches_the_former_one(mask: InkMask, pitch: float, reverse:
     flat = build_path_flat(pts, bounds, mask, params)
     assert np.array_equal(flat.uvz_mm, build_path(order.points(drawing, params.step_mm), mask,
                                                   params).uvz_mm)
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(masks(), st.sampled_from([0.5, 1.2]), st.booleans())
+def test_large_drawing_ordering_near_the_full_one(mask: InkMask, pitch: float,
+                                                  outlines_first: bool) -> None:
+    """Above GREEDY_ROWS_MAX strokes the greedy finds its next stroke with a k-d tree (the
+    same tours as the row-by-row greedy), and past TWO_OPT_FULL_WORK 2-opt scores the
+    moves that join near endpoints: never worse than the greedy, the outlines still first,
+    and close to the full 2-opt (here forced on small drawings)."""
+    params = _params(pitch, outlines_first)
+    drawing = _drawing(mask, params)
+    if drawing is None or len(drawing.strokes) < 2:
+        return
+    n = len(drawing.strokes)
+    costs = TransitionCosts(_endpoints(drawing, np.zeros(n, np.intp)), mask, params)
+    prec = _Precedence(drawing, outlines_first)
+    may_start = prec.outline if prec.enabled and prec.outline.any() else np.ones(n, bool)
+    ids = np.flatnonzero(np.repeat(may_start, 2))
+    firsts = sorted({int(ids[0]), int(ids[-1])})
+    for first, (seq, rev) in zip(firsts, _greedy(costs, prec, firsts), strict=True):
+        near_seq, near_rev = _greedy_near(costs, prec, first)
+        # the same cost (a tie between equally cheap strokes may pick another one)
+        assert math.isclose(float(_transitions(costs, near_seq, near_rev).sum()),
+                            float(_transitions(costs, seq, rev).sum()), rel_tol=1e-12)
+        assert sorted(near_seq.tolist()) == list(range(n))
+    seq, rev = _greedy(costs, prec, firsts[:1])[0]
+    greedy = float(_transitions(costs, seq, rev).sum())
+    full_seq, full_rev, _, _ = _two_opt(costs, seq, rev, prec, 50)
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(order_mod, "TWO_OPT_FULL_WORK", 0)
+        near_seq, near_rev, _, _ = _two_opt(costs, seq, rev, prec, 50)
+    near = float(_transitions(costs, near_seq, near_rev).sum())
+    full = float(_transitions(costs, full_seq, full_rev).sum())
+    assert near <= greedy + 1e-9
+    assert near <= 1.05 * full + 1e-9
+    assert sorted(near_seq.tolist()) == list(range(n))
+    if outlines_first:  # every fill row after all its region's outlines
+        pos = np.empty(n, np.intp)
+        pos[near_seq] = np.arange(n)
+        for r in range(prec.regions):
+            lines = np.flatnonzero(prec.outline & (prec.region == r))
+            fills = np.flatnonzero(~prec.outline & (prec.region == r))
+            if len(lines) and len(fills):
+                assert pos[lines].max() < pos[fills].min()
 
 
 def _same_plan(a: Toolpath, b: Toolpath) -> None:

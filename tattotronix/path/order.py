@@ -30,6 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
+from scipy.spatial import cKDTree
 
 from tattotronix.art.grid import InkMask
 from tattotronix.path.costs import TransitionCosts, can_drag
@@ -44,6 +45,15 @@ _GAIN_TOL_S = 1e-9  # a move must save more than this to count
 _BLOCK_ROWS = 256  # 2-opt rows scored at once (bounds memory to ~ rows x n)
 _TRIANGLE_BLOCK_ROWS = 64  # the same with the lift costs looked up (scores j >= i only)
 MAX_PASSES = 200  # 2-opt passes in all: a budget of work, never of wall time
+#: most strokes for which the greedy computes a row of costs per step; above, it asks a
+#: k-d tree for the nearest open endpoints (the same tours, ties apart, far faster)
+GREEDY_ROWS_MAX = 2000
+#: move scores a 2-opt search spends on passes that score every move (n^2 a pass); the
+#: passes past it score the moves near each stroke's ends only (neighbour lists). Every
+#: drawing under it is ordered as with no limit; an SVG of 10,341 strokes took 128 full
+#: passes, 178 s (benchmarks/bench_ordering.py)
+TWO_OPT_FULL_WORK = 10**9
+_NEIGHBOURS = 10  # nearest endpoints (and cheapest drags) a near move may join
 
 
 @dataclass(frozen=True)
@@ -234,19 +244,90 @@ def _greedy(
     return [(visits[:, t] >> 1, (visits[:, t] & 1).astype(bool)) for t in range(tours)]
 
 
+def _greedy_near(costs: TransitionCosts, prec: _Precedence, first: int
+                 ) -> tuple[NDArray[np.intp], NDArray[np.bool_]]:
+    """:func:`_greedy` for one tour, the next stroke found with a k-d tree of the endpoints
+    not yet drawn (for large drawings, where a row of costs per step is most of the work).
+
+    The cheapest lift is to the nearest open endpoint, and every drag from the needle's
+    endpoint is scored too, so the choice is :func:`_greedy`'s (ties apart). The tree is
+    rebuilt when half its endpoints are drawn."""
+    m = len(costs.pts)
+    n = m // 2
+    shut = np.zeros(m)  # + inf: stroke drawn, or a fill waiting for its outlines
+    remaining = np.bincount(prec.region[prec.outline], minlength=prec.regions)
+    fill_ends: list[NDArray[np.intp]] = []
+    outline_end = np.repeat(prec.outline, 2) if prec.enabled else np.zeros(m, bool)
+    if prec.enabled:
+        shut[np.repeat(~prec.outline & (remaining[prec.region] > 0), 2)] = np.inf
+        for r in range(prec.regions):
+            fills = np.flatnonzero((prec.region == r) & ~prec.outline)
+            fill_ends.append(np.concatenate([2 * fills, 2 * fills + 1]))
+    drawn = np.zeros(m, bool)
+    by_cost = costs.dst[np.lexsort((costs.drag_s, costs.src))]  # each src's drags, cheapest first
+    tree_ids = np.arange(m)
+    tree = cKDTree(costs.pts)
+    drawn_since = 0
+    visits = np.empty(n, np.intp)
+    e = first
+    for k in range(n):
+        if k > 0:
+            e = _nearest_open(costs, by_cost, tree, tree_ids, shut, e ^ 1)
+        visits[k] = e
+        s = e >> 1
+        shut[2 * s : 2 * s + 2] = np.inf
+        drawn[2 * s : 2 * s + 2] = True
+        drawn_since += 2
+        if outline_end[e]:
+            r = prec.region[s]
+            remaining[r] -= 1
+            if remaining[r] == 0:
+                shut[fill_ends[r]] = 0.0
+        if 2 * drawn_since >= len(tree_ids) and k + 1 < n:
+            tree_ids = np.flatnonzero(~drawn)
+            tree = cKDTree(costs.pts[tree_ids])
+            drawn_since = 0
+    return visits >> 1, (visits & 1).astype(bool)
+
+
+def _nearest_open(costs: TransitionCosts, by_cost: NDArray[np.intp], tree: cKDTree,
+                  tree_ids: NDArray[np.intp], shut: NDArray[np.float64], a: int) -> int:
+    """The open endpoint cheapest to reach from endpoint ``a`` (lowest id on a tie): the
+    cheapest open drag from ``a`` (``by_cost``: each endpoint's drag partners, cheapest
+    first) and the nearest open endpoints of the tree, asked for more until one is open
+    (the whole row past 256)."""
+    drags = by_cost[costs.indptr[a] : costs.indptr[a + 1]]
+    drags = drags[shut[drags] == 0.0][:1]
+    k = 16
+    while k <= 256 and k < 4 * len(tree_ids):
+        kk = min(k, len(tree_ids))
+        _, idx = tree.query(costs.pts[a], k=kk)
+        ids = tree_ids[np.atleast_1d(idx)]
+        if np.any(shut[ids] == 0.0):
+            cand = np.unique(np.concatenate([ids, drags]))
+            cand = cand[shut[cand] == 0.0]
+            return int(cand[np.argmin(costs.between(np.full(len(cand), a), cand))])
+        k *= 4
+    return int(np.argmin(costs.from_endpoint(a) + shut))
+
+
 def _two_opt(
     costs: TransitionCosts, seq: NDArray[np.intp], rev: NDArray[np.bool_], prec: _Precedence,
     max_passes: int,
 ) -> tuple[NDArray[np.intp], NDArray[np.bool_], int, int]:
     """Improve by reversing runs of strokes until no move helps or ``max_passes`` passes
-    have run (a work budget, not a time budget: the result never depends on the machine)."""
+    have run (a work budget, not a time budget: the result never depends on the machine).
+
+    A pass scores every move (:func:`_score_all`) while the passes so far and this one
+    score at most :data:`TWO_OPT_FULL_WORK` moves; the passes after score the moves whose
+    new transitions join near endpoints (:func:`_score_near`)."""
     seq, rev = seq.copy(), rev.copy()
     n, m = len(seq), len(costs.pts)
     passes = moves = 0
     if n < 2:
         return seq, rev, passes, moves
-    src, dst, corr = costs.corrections()
-    lifts = costs.lifts()
+    near: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None
+    work = 0
     jj = np.arange(n)
     while passes < max_passes:
         passes += 1
@@ -258,49 +339,13 @@ def _two_opt(
         pos[entry] = pos[exit_] = jj
         is_exit = np.zeros(m, bool)
         is_exit[exit_] = True
-        # drag corrections: term A c(exit[i-1], exit[j]); term B c(entry[i], entry[j+1])
-        sel_a = is_exit[src] & is_exit[dst]
-        sel_b = ~is_exit[src] & ~is_exit[dst]
-        ci = np.concatenate([pos[src[sel_a]] + 1, pos[src[sel_b]]])
-        cj = np.concatenate([pos[dst[sel_a]], pos[dst[sel_b]] - 1])
-        cc = np.concatenate([corr[sel_a], corr[sel_b]])
-        ok = (ci < n) & (cj >= ci)
-        ci, cj, cc = ci[ok], cj[ok], cc[ok]
-        by_row = np.argsort(ci, kind="stable")
-        ci, cj, cc = ci[by_row], cj[by_row], cc[by_row]
-        ex, en = costs.pts[exit_], costs.pts[entry]
-        best = np.full(n, np.inf)
-        best_j = np.zeros(n, np.intp)
-        block = _BLOCK_ROWS if lifts is None else _TRIANGLE_BLOCK_ROWS
-        for i0 in range(0, n, block):
-            ii = np.arange(i0, min(n, i0 + block))
-            # the moves of these rows end in columns j in [i0, max reach): the others are
-            # never allowed (j < i, or past the reach), so they are not scored
-            j1 = int(reach[ii].max())
-            cols = jj[i0:j1]
-            if lifts is not None:  # the same lift costs, looked up
-                a = lifts[exit_[np.maximum(ii - 1, 0)]][:, exit_[cols]]
-            else:
-                prev = ex[np.maximum(ii - 1, 0)]
-                a = costs.lift(np.hypot(prev[:, :1] - ex[cols, 0], prev[:, 1:] - ex[cols, 1]))
-            a[ii == 0] = 0.0
-            b = np.zeros_like(a)
-            inner = cols[cols < n - 1]
-            if lifts is not None:
-                b[:, : len(inner)] = lifts[entry[ii]][:, entry[inner + 1]]
-            else:
-                b[:, : len(inner)] = costs.lift(
-                    np.hypot(en[ii, :1] - en[inner + 1, 0], en[ii, 1:] - en[inner + 1, 1])
-                )
-            d = a + b - t_prev[ii, None] - t_next[None, cols]
-            lo, hi = np.searchsorted(ci, [ii[0], ii[-1] + 1])
-            in_cols = cj[lo:hi] < j1
-            np.add.at(d, (ci[lo:hi][in_cols] - i0, cj[lo:hi][in_cols] - i0),
-                      cc[lo:hi][in_cols])
-            d[(cols[None, :] < ii[:, None]) | (cols[None, :] >= reach[ii, None])] = np.inf
-            arg = d.argmin(axis=1)
-            best_j[ii] = i0 + arg
-            best[ii] = d[np.arange(len(ii)), arg]
+        ends = _Ends(entry, exit_, pos, is_exit, t_prev, t_next, reach)
+        if near is None and work + n * n <= TWO_OPT_FULL_WORK:
+            work += n * n
+            best, best_j = _score_all(costs, ends)
+        else:
+            near = _near_pairs(costs) if near is None else near
+            best, best_j = _score_near(costs, ends, *near)
         cand = np.flatnonzero(best < -_GAIN_TOL_S)
         if len(cand) == 0:
             break
@@ -315,6 +360,133 @@ def _two_opt(
             rev[i : j + 1] = ~rev[i : j + 1][::-1]
             moves += 1
     return seq, rev, passes, moves
+
+
+@dataclass(frozen=True)
+class _Ends:
+    """One 2-opt pass's view of the order: per position its entry and exit endpoints, the
+    transitions before and after it and its precedence reach; per endpoint its position
+    and whether it is an exit."""
+
+    entry: NDArray[np.intp]
+    exit: NDArray[np.intp]
+    pos: NDArray[np.intp]
+    is_exit: NDArray[np.bool_]
+    t_prev: NDArray[np.float64]
+    t_next: NDArray[np.float64]
+    reach: NDArray[np.intp]
+
+
+def _moves_of(pairs_src: NDArray[np.intp], pairs_dst: NDArray[np.intp], ends: _Ends
+              ) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
+    """The moves (reverse positions i..j) whose new transitions include ``src -> dst``,
+    as (indices into the pairs, i, j): the move's first new transition is exit[i-1] ->
+    exit[j] (two exits), its second entry[i] -> entry[j+1] (two entries)."""
+    is_exit, pos = ends.is_exit, ends.pos
+    sel_a = np.flatnonzero(is_exit[pairs_src] & is_exit[pairs_dst])
+    sel_b = np.flatnonzero(~is_exit[pairs_src] & ~is_exit[pairs_dst])
+    k = np.concatenate([sel_a, sel_b])
+    i = np.concatenate([pos[pairs_src[sel_a]] + 1, pos[pairs_src[sel_b]]])
+    j = np.concatenate([pos[pairs_dst[sel_a]], pos[pairs_dst[sel_b]] - 1])
+    return k, i, j
+
+
+def _score_all(costs: TransitionCosts, ends: _Ends
+               ) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """Per row i, the gain of its best move (reverse i..j; negative saves time) and its j,
+    every j scored, in row blocks."""
+    entry, exit_, reach = ends.entry, ends.exit, ends.reach
+    t_prev, t_next = ends.t_prev, ends.t_next
+    n = len(entry)
+    jj = np.arange(n)
+    src, dst, corr = costs.corrections()
+    lifts = costs.lifts()
+    # drag corrections: term A c(exit[i-1], exit[j]); term B c(entry[i], entry[j+1])
+    k, ci, cj = _moves_of(src, dst, ends)
+    cc = corr[k]
+    ok = (ci < n) & (cj >= ci)
+    ci, cj, cc = ci[ok], cj[ok], cc[ok]
+    by_row = np.argsort(ci, kind="stable")
+    ci, cj, cc = ci[by_row], cj[by_row], cc[by_row]
+    ex, en = costs.pts[exit_], costs.pts[entry]
+    best = np.full(n, np.inf)
+    best_j = np.zeros(n, np.intp)
+    block = _BLOCK_ROWS if lifts is None else _TRIANGLE_BLOCK_ROWS
+    for i0 in range(0, n, block):
+        ii = np.arange(i0, min(n, i0 + block))
+        # the moves of these rows end in columns j in [i0, max reach): the others are
+        # never allowed (j < i, or past the reach), so they are not scored
+        j1 = int(reach[ii].max())
+        cols = jj[i0:j1]
+        if lifts is not None:  # the same lift costs, looked up
+            a = lifts[exit_[np.maximum(ii - 1, 0)]][:, exit_[cols]]
+        else:
+            prev = ex[np.maximum(ii - 1, 0)]
+            a = costs.lift(np.hypot(prev[:, :1] - ex[cols, 0], prev[:, 1:] - ex[cols, 1]))
+        a[ii == 0] = 0.0
+        b = np.zeros_like(a)
+        inner = cols[cols < n - 1]
+        if lifts is not None:
+            b[:, : len(inner)] = lifts[entry[ii]][:, entry[inner + 1]]
+        else:
+            b[:, : len(inner)] = costs.lift(
+                np.hypot(en[ii, :1] - en[inner + 1, 0], en[ii, 1:] - en[inner + 1, 1])
+            )
+        d = a + b - t_prev[ii, None] - t_next[None, cols]
+        lo, hi = np.searchsorted(ci, [ii[0], ii[-1] + 1])
+        in_cols = cj[lo:hi] < j1
+        np.add.at(d, (ci[lo:hi][in_cols] - i0, cj[lo:hi][in_cols] - i0),
+                  cc[lo:hi][in_cols])
+        d[(cols[None, :] < ii[:, None]) | (cols[None, :] >= reach[ii, None])] = np.inf
+        arg = d.argmin(axis=1)
+        best_j[ii] = i0 + arg
+        best[ii] = d[np.arange(len(ii)), arg]
+    return best, best_j
+
+
+def _near_pairs(costs: TransitionCosts) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """(src, dst) endpoint pairs a move of :func:`_score_near` may join: each endpoint to
+    its :data:`_NEIGHBOURS` nearest, and to its :data:`_NEIGHBOURS` cheapest drag partners
+    (a drag may beat a nearer lift)."""
+    pts = costs.pts
+    k = min(_NEIGHBOURS + 1, len(pts))
+    _, nb = cKDTree(pts).query(pts, k=k)
+    nb = np.asarray(nb, dtype=np.intp).reshape(len(pts), k)
+    by_cost = np.lexsort((costs.drag_s, costs.src))
+    rank = np.arange(len(by_cost)) - costs.indptr[costs.src[by_cost]]
+    cheap = by_cost[rank < _NEIGHBOURS]
+    src = np.concatenate([np.repeat(np.arange(len(pts)), k), costs.src[cheap]])
+    dst = np.concatenate([nb.ravel(), costs.dst[cheap]])
+    keep = src != dst
+    return src[keep], dst[keep]
+
+
+def _score_near(costs: TransitionCosts, ends: _Ends, src: NDArray[np.intp],
+                dst: NDArray[np.intp]) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """:func:`_score_all` for the moves one of whose new transitions is a pair of
+    :func:`_near_pairs` (the neighbour lists of 2-opt for large tours: a move that joins
+    two far endpoints by both its new transitions seldom saves time)."""
+    entry, exit_ = ends.entry, ends.exit
+    n = len(entry)
+    _, i, j = _moves_of(src, dst, ends)
+    ok = (i < n) & (j >= i) & (j < ends.reach[np.minimum(i, n - 1)])
+    i, j = i[ok], j[ok]
+    a = np.zeros(len(i))
+    has_a = i > 0
+    a[has_a] = costs.between(exit_[i[has_a] - 1], exit_[j[has_a]])
+    b = np.zeros(len(i))
+    has_b = j < n - 1
+    b[has_b] = costs.between(entry[i[has_b]], entry[j[has_b] + 1])
+    d = a + b - ends.t_prev[i] - ends.t_next[j]
+    best = np.full(n, np.inf)
+    best_j = np.zeros(n, np.intp)
+    if len(i):
+        order = np.lexsort((j, d, i))  # by row, then gain, then the smaller j
+        i, j, d = i[order], j[order], d[order]
+        first = np.flatnonzero(np.concatenate([[True], i[1:] != i[:-1]]))
+        best[i[first]] = d[first]
+        best_j[i[first]] = j[first]
+    return best, best_j
 
 
 _SeamCosts = dict[tuple[int, float, float], NDArray[np.float64]]
@@ -445,7 +617,10 @@ def optimise_order(
     p = costs.pts[ids]
     starts = {int(ids[np.argmin(p[:, 0])]), int(ids[np.argmax(p[:, 0])]),
               int(ids[np.argmin(p[:, 1])]), int(ids[np.argmax(p[:, 1])])}
-    tours = _greedy(costs, prec, sorted(starts))  # at most four: the extremes in u and v
+    if n > GREEDY_ROWS_MAX:
+        tours = [_greedy_near(costs, prec, e) for e in sorted(starts)]
+    else:
+        tours = _greedy(costs, prec, sorted(starts))  # at most four: the extremes in u and v
     tour_costs = [float(_transitions(costs, *tour).sum()) for tour in tours]
     seq, rev = tours[int(np.argmin(tour_costs))]
     greedy_cost = min(tour_costs)
