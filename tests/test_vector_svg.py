@@ -337,3 +337,32 @@ def test_text_is_drawn_without_system_fonts(tmp_path: Path, monkeypatch: pytest.
     without, box2 = _text_ink_box(tmp_path)
     np.testing.assert_array_equal(without, with_system)
     assert box2 == box
+
+
+def test_a_line_the_mask_drops_is_not_drawn_beside_the_ink_it_nearly_touches(
+        tmp_path: Path) -> None:
+    """A short stroked line smaller than mask.min_region_mm2 (its region dropped) ends
+    0.15 mm from a kept shape: its band touched the shape, so the whole line was drawn
+    off the artwork (a 10,000-line SVG: bleed up to 2.15 mm). Now a vector line is drawn
+    only where the mask keeps ink, as the mask route draws it: this one not at all."""
+    from tattotronix.config.params import compose_settings
+    from tattotronix.path.params import ToolpathParams
+    from tattotronix.path.plan import plan_toolpath
+    from tattotronix.pipeline import drawing_inputs
+
+    svg = tmp_path / "near.svg"
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="30mm" height="20mm" '
+                   'viewBox="0 0 30 20"><rect x="5" y="5" width="8" height="8"/>'
+                   '<path d="M13.15,9 L15.15,9.3" stroke="black" stroke-width="0.4" '
+                   'fill="none"/></svg>')
+    bleeds, entries = {}, {}
+    for vector in (False, True):
+        cfg = compose_settings([f"artwork.source={svg}", f"artwork.vector={vector}"])
+        mask, lines = drawing_inputs(cfg, svg, "near")
+        params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
+        tp = plan_toolpath(mask, params, vector=lines)
+        ink = tp.ink(mask, params.needle_width_mm, cfg.toolpath.ink_res_mm).fidelity
+        bleeds[vector] = ink.bleed_max_mm
+        entries[vector] = tp.metrics_dict()["entries"]
+    assert bleeds[True] <= bleeds[False] + 1e-9, bleeds  # was 2.3 mm: the whole line
+    assert entries[True] == entries[False], entries  # no stroke of its own

@@ -57,6 +57,7 @@ from tattotronix.art.grid import InkMask
 from tattotronix.art.vector import VectorLines
 from tattotronix.errors import TattotronixError
 from tattotronix.path.centreline import skeleton_strokes
+from tattotronix.path.polyline import resample
 
 __all__ = ["FILL_INSET_NEEDLES", "MAX_FINE_PIXELS", "Compensated", "FineGrid", "compensate",
            "concentric_rings", "pixel_width", "refine_factor"]
@@ -433,12 +434,55 @@ def _vector_lines(vector: VectorLines, fine: NDArray[np.int32], grid: FineGrid,
         band = np.zeros((r1 - r0, c1 - c0), np.uint8)
         cv2.polylines(band, [pts], isClosed=False, color=1, thickness=thick, shift=4)
         covered[r0:r1, c0:c1] |= band
-        lab = _region_of(fine[r0:r1, c0:c1], band.astype(bool))
+        window = fine[r0:r1, c0:c1]
+        lab = _region_of(window, band.astype(bool))
         if lab == 0:
             continue
-        lines.setdefault(lab, []).append(path)
-        widths.setdefault(lab, []).append(np.full(len(path), float(width)))
+        pieces = _on_ink(path, window, (r0, c0), grid, float(width))
+        for piece in pieces:
+            if piece is not path:
+                lab = _region_of(window, _band(piece, window.shape, (r0, c0), grid, thick))
+            if lab:
+                lines.setdefault(lab, []).append(piece)
+                widths.setdefault(lab, []).append(np.full(len(piece), float(width)))
     return covered.astype(bool)
+
+
+def _band(path: Loop, shape: tuple[int, ...], origin: tuple[int, int], grid: FineGrid,
+          thick: int) -> NDArray[np.bool_]:
+    """The pixels of a window (its top-left pixel at ``origin``, row and column) that a
+    polyline (mm) covers at ``thick`` pixels."""
+    r0, c0 = origin
+    px = np.column_stack([(path[:, 0] - grid.xs[0]) / grid.res_mm - c0,
+                          (grid.ys[0] - path[:, 1]) / grid.res_mm - r0])
+    band = np.zeros(shape[:2], np.uint8)
+    cv2.polylines(band, [np.rint(px * 16).astype(np.int32).reshape(-1, 1, 2)],
+                  isClosed=False, color=1, thickness=thick, shift=4)
+    return band.astype(bool)
+
+
+def _on_ink(path: Loop, window: NDArray[np.int32], origin: tuple[int, int], grid: FineGrid,
+            min_mm: float) -> list[Loop]:
+    """The pieces of a vector line (mm) that lie on the kept ink of ``window`` (its labels;
+    a region the mask dropped, or no ink, is 0), a mask pixel's tolerance: the whole line,
+    unchanged, when all of it does (a stroked line's centreline lies inside its ink); else
+    its runs on ink at least ``min_mm`` long, resampled at half a fine pixel. So a line the
+    mask dropped in part is drawn where the mask keeps it, never across the dropped part."""
+    r0, c0 = origin
+    k = 2 * grid.factor + 1
+    near = cv2.dilate((window > 0).astype(np.uint8),
+                      cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
+    pts = resample(path, grid.res_mm / 2)
+    col = np.rint((pts[:, 0] - grid.xs[0]) / grid.res_mm).astype(np.intp) - c0
+    row = np.rint((grid.ys[0] - pts[:, 1]) / grid.res_mm).astype(np.intp) - r0
+    inside = (row >= 0) & (row < near.shape[0]) & (col >= 0) & (col < near.shape[1])
+    on = np.zeros(len(pts), bool)
+    on[inside] = near[row[inside], col[inside]] > 0
+    if on.all():
+        return [path]
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], on.astype(np.int8), [0]])))
+    pieces = [pts[a:b] for a, b in zip(edges[0::2], edges[1::2], strict=True)]
+    return [q for q in pieces if len(q) >= 2 and _arc_mm(q) >= min_mm]
 
 
 def pixel_width(distance_px: NDArray[np.floating], res_mm: float) -> NDArray[np.float64]:
