@@ -19,7 +19,7 @@ import logging
 
 from PIL import Image
 
-from tattotronix.art.artwork import artwork_name, load_artwork
+from tattotronix.art.artwork import artwork_name, check_same_source, load_artwork
 from tattotronix.art.mask import otsu_ink
 from tattotronix.art.vector import VectorLines, artwork_lines
 from tattotronix.config.schema import Config
@@ -34,6 +34,9 @@ MM_PER_INCH = 25.4
 def main(cfg: Config, out: Outputs) -> None:
     """Load the artwork, write its raster and metrics."""
     name = artwork_name(cfg.artwork)
+    if cfg.artwork.name is None:  # a name from the file's stem: mine.png and mine.svg
+        check_same_source(out.path("metrics", "artwork", f"{name}.json"), cfg.artwork.source,
+                          name, replacing=True)
     art = load_artwork(
         cfg.artwork.source, cfg.mask.width_mm, cfg.mask.res_mm, cfg.artwork.max_pixels, name,
         svg_local_files=cfg.artwork.svg_local_files,

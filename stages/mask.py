@@ -17,7 +17,7 @@ import logging
 import numpy as np
 from PIL import Image
 
-from tattotronix.art.artwork import artwork_grid, artwork_name
+from tattotronix.art.artwork import artwork_grid, artwork_name, check_same_source
 from tattotronix.art.mask import mask_on_panel
 from tattotronix.config.schema import Config
 from tattotronix.errors import TattotronixError
@@ -43,8 +43,9 @@ def main(cfg: Config, out: Outputs) -> None:
             f"cannot read {src} ({type(exc).__name__}: {' '.join(str(exc).split())}); "
             "re-run the 'artwork' stage"
         ) from None
-    grid = artwork_grid(out.require(out.input("metrics", "artwork", f"{name}.json"),
-                                    "artwork"), grey.shape)
+    art_metrics = out.require(out.input("metrics", "artwork", f"{name}.json"), "artwork")
+    check_same_source(art_metrics, cfg.artwork.source, name, replacing=False)
+    grid = artwork_grid(art_metrics, grey.shape)
     mask, stats = mask_on_panel(grey, grid.res_mm, cfg.mask, cfg.robot.panel.size_mm,
                                 grid.transparent)
     check_reach(cfg, mask)

@@ -173,3 +173,62 @@ def test_a_missing_input_names_the_command_that_makes_it(project: Path,
     assert fix[1:] == ["stages/artwork.py", *args]
     assert _run(project, *fix[1:]).returncode == 0
     assert (project / HAND_RUNS / "artwork" / "my logo.png").is_file()
+
+
+def test_two_files_with_one_stem_never_overwrite_or_mix(project: Path, tmp_path: Path) -> None:
+    """mine.png and mine.svg are both 'mine': the second artwork run by hand was written
+    over the first without a word, and a mask run for the SVG read the PNG's raster. Now
+    the second is refused in one line that names artwork.name, nothing written; with a
+    name of its own it runs; a mask run reads only the artwork made from its own file."""
+    from .conftest import small_art
+
+    png = small_art(tmp_path / "mine.png")
+    svg = tmp_path / "mine.svg"
+    svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="24mm" height="12mm" '
+                   'viewBox="0 0 24 12"><rect x="2" y="2" width="20" height="8"/></svg>')
+    assert _run(project, "stages/artwork.py", f"artwork.source={png}",
+                "mask.width_mm=24").returncode == 0
+    before = _tree(project / HAND_RUNS)
+    for stage in ("artwork", "mask"):
+        run = _run(project, f"stages/{stage}.py", f"artwork.source={svg}")
+        assert run.returncode == 2, run.stdout + run.stderr
+        line = run.stderr.strip().splitlines()
+        assert len(line) == 1 and "artwork.name=mine-svg" in line[0], run.stderr
+        assert "Traceback" not in run.stdout + run.stderr
+        assert _tree(project / HAND_RUNS) == before
+    for stage in ("artwork", "mask"):
+        run = _run(project, f"stages/{stage}.py", f"artwork.source={svg}",
+                   "artwork.name=mine-svg")
+        assert run.returncode == 0, run.stderr
+    # a name given on purpose takes a new file (a new version of a logo)
+    again = _run(project, "stages/artwork.py", f"artwork.source={svg}", "artwork.name=mine")
+    assert again.returncode == 0, again.stderr
+
+
+def test_same_source_compares_files_not_spellings(tmp_path: Path,
+                                                  monkeypatch: pytest.MonkeyPatch) -> None:
+    import json
+
+    from tattotronix.art.artwork import check_same_source
+    from tattotronix.errors import TattotronixError
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "a.png").write_bytes(b"x")
+    (tmp_path / "a.svg").write_text("<svg/>")
+    rec = tmp_path / "rec.json"
+    rec.write_text(json.dumps({"source": "a.png"}))
+    check_same_source(rec, str(tmp_path / "a.png"), "a", replacing=True)  # same file
+    check_same_source(rec, "./a.png", "a", replacing=False)
+    with pytest.raises(TattotronixError, match=r"artwork.name=a-svg"):
+        check_same_source(rec, "a.svg", "a", replacing=True)
+    with pytest.raises(TattotronixError, match=r"was made from a.png .*not a.svg"):
+        check_same_source(rec, "a.svg", "a", replacing=False)
+    rec.write_text(json.dumps({"source": "builtin:emblem"}))
+    check_same_source(rec, "emblem", "emblem", replacing=False)
+    check_same_source(rec, None, "emblem", replacing=False)  # the default is the emblem
+    with pytest.raises(TattotronixError):
+        check_same_source(rec, "lineart", "emblem", replacing=False)
+    for text in ("{", "[]", json.dumps({"res_mm": 0.1})):  # nothing recorded: no check
+        rec.write_text(text)
+        check_same_source(rec, "a.svg", "a", replacing=True)
+    check_same_source(tmp_path / "none.json", "a.svg", "a", replacing=True)

@@ -28,6 +28,7 @@ external files, and an image with no drawable ink (one flat tone).
 from __future__ import annotations
 
 import io
+import json
 import logging
 import math
 import re
@@ -194,6 +195,60 @@ def resolve_source(source: str | Path | None) -> Path:
         f"artwork file not found: {source} (give a PNG, JPG or SVG path, "
         f"or a built-in: {', '.join(BUILTINS)})"
     )
+
+
+def source_label(source: str | Path | None) -> str | None:
+    """How outputs record an ``artwork.source``: ``builtin:<name>`` for a built-in, else
+    the file's path (cwd-relative if under it); None for a file that does not exist."""
+    try:
+        return _source_label(resolve_source(source))
+    except TattotronixError:
+        return None
+
+
+def _same_file(label_a: str, label_b: str) -> bool:
+    if label_a.startswith("builtin:") or label_b.startswith("builtin:"):
+        return label_a == label_b
+    return Path(label_a).expanduser().resolve() == Path(label_b).expanduser().resolve()
+
+
+def check_same_source(recorded_in: Path, source: str | Path | None, name: str,
+                      replacing: bool) -> None:
+    """Refuse to mix two artworks that share a name (by default a file's stem:
+    ``mine.png`` and ``mine.svg`` are both ``mine``).
+
+    Args:
+        recorded_in: a JSON file an earlier run wrote for ``name``, with the ``source``
+            it was made from (the artwork's metrics, a run's metrics); nothing is checked
+            when it is missing, unreadable or records no source.
+        source: this run's ``artwork.source``.
+        name: the artwork's name.
+        replacing: this run would overwrite ``recorded_in`` (check it only for a name
+            taken from the file's stem: a name given on purpose may take a new file);
+            else it reads what ``recorded_in`` describes.
+
+    Raises:
+        TattotronixError: the file records another source; says which, and how to give
+            this one a name of its own.
+    """
+    label = source_label(source)
+    try:
+        recorded = json.loads(recorded_in.read_text()).get("source")
+    except (OSError, ValueError, AttributeError):
+        return
+    if label is None or not isinstance(recorded, str) or _same_file(recorded, label):
+        return
+    path = Path(label.removeprefix("builtin:"))
+    own = f"{path.stem}-{path.suffix.lstrip('.') or 'file'}"
+    if replacing:
+        raise TattotronixError(
+            f"two artworks named '{name}': {recorded_in} was written for {recorded}, and "
+            f"this run would replace it with {label}'s; give this one a name of its own "
+            f"(artwork.name={own}), or delete the other's outputs")
+    raise TattotronixError(
+        f"the artwork '{name}' was made from {recorded} ({recorded_in}), not {label}: run "
+        "the artwork stage for this file first, with the same artwork.name (a name of its "
+        f"own, artwork.name={own}, keeps the other)")
 
 
 def artwork_name(cfg_artwork: ArtworkConfig) -> str:

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from tattotronix.art.artwork import BUILTINS, artwork_name
+from tattotronix.art.artwork import BUILTINS, artwork_name, check_same_source, source_label
 from tattotronix.art.grid import InkMask
 from tattotronix.config.schema import Config, to_dict
 from tattotronix.control.analysis import LoopReport, loop_report
@@ -431,6 +431,13 @@ def draw_simulated(cfg: Config, out: Outputs) -> JsonDict:
     Returns:
         The run metrics (also written to ``data/metrics/runs/<name>-<backend>.json``).
     """
+    source = cfg.artwork.source
+    if cfg.art is None and cfg.artwork.name is None and source is not None and str(
+            source) not in BUILTINS:  # a file named by its stem: mine.png and mine.svg
+        name = artwork_name(cfg.artwork)
+        label = run_label(name, cfg.backend.name, out.sweep_suffix(_NOT_IN_LABEL))
+        check_same_source(out.path("metrics", "runs", f"{label}.json"), source, name,
+                          replacing=True)
     desc = build_description(cfg.robot)
     drawing = resolve_drawing(cfg, out.data, desc)
     loop = run_closed_loop(cfg, out.data, desc, drawing, window=cfg.window,
@@ -438,12 +445,16 @@ def draw_simulated(cfg: Config, out: Outputs) -> JsonDict:
     return score_and_write(cfg, out, loop, desc)
 
 
+#: overrides a run's folder name never carries (the name and backend say them, or they
+#: change nothing drawn)
+_NOT_IN_LABEL = ("backend", "art", "artwork.name", "artwork.source", "draw.progress", "viewer")
+
+
 def score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
                     desc: RobotDescription) -> JsonDict:
     run, drawing, backend = loop.run, loop.drawing, loop.backend
     # the jobs of a multirun (draw.py -m controller.wn=40,80) each get their own outputs
-    label = run_label(drawing.name, backend, out.sweep_suffix(
-        ("backend", "art", "artwork.name", "artwork.source", "draw.progress", "viewer")))
+    label = run_label(drawing.name, backend, out.sweep_suffix(_NOT_IN_LABEL))
     chain = Chain.from_description(desc)
     k = len(run.t)
     tip, _ = chain.fk(run.q) if k else (np.zeros((0, 3)), None)
@@ -496,6 +507,8 @@ def score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
     ).save(out.tmp_path(RunLogRecord.path(out.root, label=label)),
            make_provenance(cfg, drawing.inputs))
     metrics = loop.metrics(err)
+    artwork_file = drawing.inputs.get("artwork")
+    metrics["source"] = None if artwork_file is None else source_label(artwork_file)
     metrics.update(_finite({
         **ink.metrics(), **against_art,
         "plant": {"dt_s": loop.plant_dt_s, "substeps": run.substeps,
