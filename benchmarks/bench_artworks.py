@@ -181,7 +181,6 @@ def plan_figures(art: Art) -> dict[str, float | int | str | None]:
     """Plan ``art`` with and without compensation, and its trajectory; the figures."""
     from tattotronix.config.params import compose_settings, with_overrides
     from tattotronix.kinematics import Chain
-    from tattotronix.path.fidelity import missed_reach_mm
     from tattotronix.path.params import ToolpathParams
     from tattotronix.path.plan import plan_toolpath
     from tattotronix.pipeline import drawing_inputs, solve_ik, trajectory_from_path
@@ -210,8 +209,8 @@ def plan_figures(art: Art) -> dict[str, float | int | str | None]:
     out["bleed_mm"] = round(fid.bleed_max_mm, 3)
     out["cover"] = round(fid.coverage, 3)
     needle = float(cfg.toolpath.needle_width_mm)
-    out["missed"] = len(ink.missed(missed_reach_mm(cfg.toolpath.pitch_mm, needle, mask.res_mm),
-                                   needle, bands=params.lines_only))
+    out["missed"] = len(ink.missed_by(cfg.toolpath.pitch_mm, needle, mask.res_mm,
+                                      params.lines_only)[0])
     if art.lines_svg:
         marking = tp.path.kind == 1
         out["lines_worst"] = round(worst_line(

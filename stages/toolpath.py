@@ -22,7 +22,7 @@ from tattotronix.config.schema import Config
 from tattotronix.io.artifacts import ToolpathRecord, make_provenance
 from tattotronix.io.outputs import Outputs
 from tattotronix.path.export import panel_extent_mm, toolpath_svg
-from tattotronix.path.fidelity import missed_message, missed_reach_mm
+from tattotronix.path.fidelity import missed_message
 from tattotronix.path.figure import toolpath_figure
 from tattotronix.path.inkfigure import artwork_ink_figure
 from tattotronix.path.params import ToolpathParams
@@ -66,8 +66,7 @@ def main(cfg: Config, out: Outputs) -> None:
                        out.tmp_path(figure),
                        f"{name}: the planned ink against the artwork (needle "
                        f"{float(cfg.toolpath.needle_width_mm):g} mm wide)", ink.fidelity)
-    reach = missed_reach_mm(params.pitch_mm, needle, mask.res_mm)
-    missed = ink.missed(reach, needle, bands=params.lines_only)
+    missed, reach = ink.missed_by(params.pitch_mm, needle, mask.res_mm, params.lines_only)
     if missed:
         log.warning("toolpath %s", missed_message(name, missed, reach, str(figure)))
     out.write_json(out.path("metrics", "toolpath", f"{name}.json"),

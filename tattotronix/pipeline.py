@@ -30,7 +30,8 @@ from tattotronix.trajectory import JointLimits, JointPath, Trajectory, Trajector
 from tattotronix.trajectory import plan_trajectory as _plan_trajectory
 from tattotronix.trajectory.travel import TravelPlanner
 
-__all__ = ["check_reach", "drawing_inputs", "ik_settings", "mask_of", "plan_drawing", "solve_ik",
+__all__ = ["check_reach", "drawing_inputs", "ik_settings", "mask_of", "plan_drawing",
+           "plan_drawing_on", "solve_ik",
            "straight_travel_baseline", "trajectory_from_path", "travel_planner"]
 
 log = logging.getLogger("tattotronix.pipeline")
@@ -106,10 +107,12 @@ def mask_of(cfg: Config, source: str | Path | None, name: str) -> InkMask:
     return drawing_inputs(cfg, source, name)[0]
 
 
-def drawing_inputs(cfg: Config, source: str | Path | None, name: str
+def drawing_inputs(cfg: Config, source: str | Path | None, name: str,
+                   desc: RobotDescription | None = None
                    ) -> tuple[InkMask, VectorLines | None]:
     """The ink mask of an artwork and its vector lines (``artwork.vector``; else None), as
-    the artwork and mask stages make them.
+    the artwork and mask stages make them (``desc``: the arm's description, for the reach
+    check, if the caller has it built).
 
     Raises:
         TattotronixError: unreadable art, or a mask the settings refuse (one off the panel
@@ -122,16 +125,17 @@ def drawing_inputs(cfg: Config, source: str | Path | None, name: str
                        height_mm=m.height_mm)
     grey = art.as_uint8().astype(np.float64)  # what the artwork stage's PNG holds
     mask, _ = mask_on_panel(grey, art.res_mm, m, cfg.robot.panel.size_mm, art.transparent)
-    check_reach(cfg, mask)
+    check_reach(cfg, mask, desc)
     vector = (artwork_lines(source, art.shape, art.res_mm, cfg.toolpath.step_mm)
               if cfg.artwork.vector else None)
     return mask, vector
 
 
-def check_reach(cfg: Config, mask: InkMask) -> None:
+def check_reach(cfg: Config, mask: InkMask, desc: RobotDescription | None = None) -> None:
     """Refuse a drawing the arm cannot reach where it is placed, before any work: the
     needle on its axis at the marking depth and at the clearance height over each corner
     of the ink's convex hull, in turn (the far corners of the panel are out of reach).
+    ``desc`` is the arm's description of ``cfg.robot``, if the caller has built it.
 
     Raises:
         TattotronixError: naming the first corner out of reach and the settings that move
@@ -153,7 +157,8 @@ def check_reach(cfg: Config, mask: InkMask) -> None:
                           for z in (-float(tp.plunge_mm), float(tp.clearance_mm))])
     xyz = np.asarray(tp.panel_origin, dtype=np.float64) + uvz / 1000.0
     ik = cfg.ik
-    res = solve_path(Chain.from_description(build_description(cfg.robot)), xyz,
+    desc = build_description(cfg.robot) if desc is None else desc
+    res = solve_path(Chain.from_description(desc), xyz,
                      needle_axis=list(ik.needle_axis), seed=list(ik.seed),
                      dls_lambda=ik.dls_lambda, max_iter=ik.max_iter, tol=ik.tol,
                      anchor_spacing_m=ik.anchor_spacing_m)
@@ -178,7 +183,14 @@ def plan_drawing(cfg: Config, source: str | Path | None, name: str,
         TattotronixError: whatever a stage would refuse (unreadable art, no ink, a drawing
             off the panel, unreachable points, a speed too high).
     """
-    mask, vector = drawing_inputs(cfg, source, name)
+    return plan_drawing_on(cfg, source, name, desc)[0]
+
+
+def plan_drawing_on(cfg: Config, source: str | Path | None, name: str,
+                    desc: RobotDescription) -> tuple[Trajectory, InkMask]:
+    """:func:`plan_drawing`, and the ink mask it was planned on (a run scores its ink
+    against it, so it is not made twice)."""
+    mask, vector = drawing_inputs(cfg, source, name, desc)
     params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
     tp = plan_toolpath(mask, params, vector=vector)
     check_needle(tp, mask, params.needle_width_mm, cfg.toolpath.ink_res_mm)
@@ -188,4 +200,4 @@ def plan_drawing(cfg: Config, source: str | Path | None, name: str,
     path = JointPath.from_arrays(desc.joint_names, res.q, tcp, tp.path.kind, tp.path.uvz_mm)
     traj = trajectory_from_path(cfg, path, desc)
     log.info("planned %s in memory: %d points, %.1f s", name, len(traj.t), traj.duration_s)
-    return traj
+    return traj, mask

@@ -85,6 +85,8 @@ class Drawing:
         kind: point kinds (0 travel, 1 mark, 2 approach).
         origin: ``stored``, ``retimed`` or ``planned``.
         inputs: files it came from (role -> path), for the provenance.
+        mask: the ink mask a drawing planned here was planned on (its ink is scored
+            against it); None for a stored or re-timed one (the mask stage's file).
     """
 
     name: str
@@ -94,6 +96,7 @@ class Drawing:
     kind: NDArray[np.int8]
     origin: str
     inputs: dict[str, Path] = field(default_factory=dict)
+    mask: InkMask | None = None
 
 
 def available_drawings(data: Path) -> list[str]:
@@ -145,15 +148,17 @@ def resolve_drawing(cfg: Config, data: Path, desc: RobotDescription) -> Drawing:
         TattotronixError: an unknown ``art`` (the message lists those available), or
             whatever planning refuses.
     """
-    from tattotronix.pipeline import plan_drawing, trajectory_from_path
+    from tattotronix.pipeline import plan_drawing_on, trajectory_from_path
+
+    def planned(source: str | Path, inputs: dict[str, Path]) -> Drawing:
+        traj, mask = plan_drawing_on(cfg, source, name, desc)
+        return Drawing(name, traj.t, traj.q, traj.qd, traj.kind, "planned", inputs, mask)
 
     source = cfg.artwork.source
     art = cfg.art
     if art is None and source is not None and str(source) not in BUILTINS:
         name = artwork_name(cfg.artwork)
-        traj = plan_drawing(cfg, source, name, desc)
-        return Drawing(name, traj.t, traj.q, traj.qd, traj.kind, "planned",
-                       {"artwork": Path(str(source))})
+        return planned(source, {"artwork": Path(str(source))})
     name = str(art) if art is not None else artwork_name(cfg.artwork)
     stored = TrajectoryRecord.path(data, name=name)
     ik_file = IkRecord.path(data, name=name)
@@ -176,12 +181,9 @@ def resolve_drawing(cfg: Config, data: Path, desc: RobotDescription) -> Drawing:
         traj = trajectory_from_path(cfg, JointPath.from_npz(ik_file), desc)
         return Drawing(name, traj.t, traj.q, traj.qd, traj.kind, "retimed", {"ik": ik_file})
     if name in BUILTINS:
-        traj = plan_drawing(cfg, name, name, desc)
-        return Drawing(name, traj.t, traj.q, traj.qd, traj.kind, "planned", {})
+        return planned(name, {})
     if not same_path and planned_from is not None and Path(str(planned_from)).is_file():
-        traj = plan_drawing(cfg, str(planned_from), name, desc)
-        return Drawing(name, traj.t, traj.q, traj.qd, traj.kind, "planned",
-                       {"artwork": Path(str(planned_from))})
+        return planned(str(planned_from), {"artwork": Path(str(planned_from))})
     if not same_path:
         raise TattotronixError(
             f"the drawing '{name}' was planned with other path settings and is not a "
@@ -561,9 +563,12 @@ def _planned_lines(data: Path, drawing: Drawing) -> tuple[list[Array], list[floa
 
 def _artwork_mask(cfg: Config, data: Path, drawing: Drawing) -> InkMask | None:
     """The ink mask the drawing was planned from: the mask stage's file for a stored or
-    re-timed drawing, else the artwork's, made here; None where there is none to make."""
+    re-timed drawing, else the one it was planned on, or the artwork's, made here; None
+    where there is none to make."""
     from tattotronix.pipeline import mask_of
 
+    if drawing.mask is not None:
+        return drawing.mask
     stored = data / "mask" / f"{drawing.name}.npz"
     if drawing.origin != "planned" and stored.exists():
         return InkMask.load(stored)

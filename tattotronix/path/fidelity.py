@@ -317,6 +317,13 @@ class PlannedInk:
     fidelity: ArtworkFidelity
     grid: InkGrid
 
+    def missed_by(self, pitch_mm: float, needle_mm: float, mask_res_mm: float,
+                  bands: bool = False) -> tuple[list[MissedPart], float]:
+        """:meth:`missed` at :func:`missed_reach_mm` of a plan's pitch, needle and mask
+        pixel (``bands``: ``toolpath.lines_only``), and that reach, mm."""
+        reach = missed_reach_mm(pitch_mm, needle_mm, mask_res_mm)
+        return self.missed(reach, needle_mm, bands=bands), reach
+
     def missed(self, reach_mm: float, needle_mm: float, bands: bool = False
                ) -> list[MissedPart]:
         """The parts of the artwork farther than ``reach_mm`` from any ink (8-connected,
