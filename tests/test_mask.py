@@ -143,6 +143,35 @@ def test_regions_are_8_connected_and_small_ones_dropped() -> None:
     assert stats.smallest_region_mm2 == pytest.approx(800 * RES**2)
 
 
+def test_a_dropped_region_is_named_in_one_line(caplog: pytest.LogCaptureFixture) -> None:
+    """Small regions are left out (the original's rule, against a raster's noise), but a
+    logo's dot is drawing: flat art (threshold) warns in one line with the count, the area,
+    the largest and where it is, and the setting; a photograph's edges only inform."""
+    ink = np.zeros((80, 80), bool)
+    ink[10:50, 10:50] = True
+    ink[60:66, 60:66] = True  # 2.25 mm^2
+    ink[70:73, 10:13] = True  # 0.56 mm^2
+    grey = np.where(ink, 0.0, 255.0)
+    with caplog.at_level("INFO", logger="tattotronix.art.mask"):
+        mask, _ = _mask(grey, "threshold")
+    said = [r for r in caplog.records if "left out" in r.getMessage()]
+    assert len(said) == 1 and said[0].levelname == "WARNING", caplog.text
+    u = float(mask.xs[62:64].mean())
+    v = float(mask.ys[62:64].mean())
+    assert said[0].getMessage() == (
+        "mask: 2 ink region(s) smaller than mask.min_region_mm2=4 mm^2 are left out, 2.81 "
+        f"mm^2 in all (the largest 2.25 mm^2, at panel ({u:.1f}, {v:.1f}) mm): lower "
+        "mask.min_region_mm2 to draw them")
+    caplog.clear()
+    with caplog.at_level("INFO", logger="tattotronix.art.mask"):
+        _mask(grey, "threshold", min_region_mm2=0.5)
+    assert not any("left out" in r.getMessage() for r in caplog.records)
+    caplog.clear()
+    with caplog.at_level("INFO", logger="tattotronix.art.mask"):
+        _mask(grey, "edges")
+    assert all(r.levelname == "INFO" for r in caplog.records if "left out" in r.getMessage())
+
+
 def test_holes_use_4_connected_background() -> None:
     ring = np.zeros((40, 40), bool)
     ring[10:30, 10:30] = True

@@ -212,6 +212,22 @@ def count_holes(ink: NDArray[np.bool_]) -> int:
     return max(int(n) - 2, 0)
 
 
+def _say_dropped(regions: Regions, dropped: NDArray[np.bool_], px_mm2: float,
+                 min_region_mm2: float, xs: NDArray[np.float64], ys: NDArray[np.float64],
+                 level: int) -> None:
+    """One line for the regions the mask leaves out for being small: how many, their area,
+    the largest and where it is. A warning for flat art (a logo's dot or short line is
+    drawing, not noise); for a photograph's edges, where specks are the rule, information."""
+    areas = regions.areas_px[dropped] * px_mm2
+    largest = int(np.flatnonzero(dropped)[np.argmax(areas)]) + 1
+    rows, cols = np.nonzero(regions.labels == largest)
+    log.log(level, "mask: %d ink region(s) smaller than mask.min_region_mm2=%g mm^2 are left "
+            "out, %.2f mm^2 in all (the largest %.2f mm^2, at panel (%.1f, %.1f) mm): lower "
+            "mask.min_region_mm2 to draw them", int(dropped.sum()), min_region_mm2,
+            float(areas.sum()), float(areas.max()), float(xs[cols].mean()),
+            float(ys[rows].mean()))
+
+
 def make_mask(
     grey: NDArray[np.generic],
     res_mm: float,
@@ -276,6 +292,9 @@ def make_mask(
         else:
             why = f"the {kind.value} method finds no ink in it"
         raise NoInkError(f"the artwork has no drawable ink: {why}")
+    if not keep.all():
+        _say_dropped(regions, ~keep, px_mm2, min_region_mm2, xs, ys,
+                     logging.WARNING if kind is MaskMethod.threshold else logging.INFO)
     lut = np.concatenate([[False], keep])
     ink = lut[regions.labels]
     kept_px = regions.areas_px[keep]
