@@ -394,8 +394,11 @@ def test_large_drawing_ordering_near_the_full_one(mask: InkMask, pitch: float,
                                                   outlines_first: bool) -> None:
     """Above GREEDY_ROWS_MAX strokes the greedy finds its next stroke with a k-d tree (the
     same tours as the row-by-row greedy), and past TWO_OPT_FULL_WORK 2-opt scores the
-    moves that join near endpoints: never worse than the greedy, the outlines still first,
-    and close to the full 2-opt (here forced on small drawings)."""
+    moves that join near endpoints (here forced on small drawings): it converges to an
+    order no such move improves, never worse than the greedy's, the outlines still first.
+    How close it comes to the full search is a benchmark's figure
+    (benchmarks/bench_ordering.py: 0.007 % on 10,341 strokes), not a property: on a
+    drawing of a few strokes the two searches can end in local optima 8 % apart."""
     params = _params(pitch, outlines_first)
     drawing = _drawing(mask, params)
     if drawing is None or len(drawing.strokes) < 2:
@@ -414,14 +417,14 @@ def test_large_drawing_ordering_near_the_full_one(mask: InkMask, pitch: float,
         assert sorted(near_seq.tolist()) == list(range(n))
     seq, rev = _greedy(costs, prec, firsts[:1])[0]
     greedy = float(_transitions(costs, seq, rev).sum())
-    full_seq, full_rev, _, _ = _two_opt(costs, seq, rev, prec, 50)
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(order_mod, "TWO_OPT_FULL_WORK", 0)
-        near_seq, near_rev, _, _ = _two_opt(costs, seq, rev, prec, 50)
+        near_seq, near_rev, passes, _ = _two_opt(costs, seq, rev, prec, 200)
+        # converged: no move of the neighbour lists improves it any more
+        assert passes < 200
+        assert _two_opt(costs, near_seq, near_rev, prec, 1)[3] == 0
     near = float(_transitions(costs, near_seq, near_rev).sum())
-    full = float(_transitions(costs, full_seq, full_rev).sum())
-    assert near <= greedy + 1e-9
-    assert near <= 1.05 * full + 1e-9
+    assert near <= greedy + 1e-9  # only improving moves are applied
     assert sorted(near_seq.tolist()) == list(range(n))
     if outlines_first:  # every fill row after all its region's outlines
         pos = np.empty(n, np.intp)
