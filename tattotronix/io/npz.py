@@ -13,6 +13,7 @@ a refusal that names the file and the stage that writes it.
 
 from __future__ import annotations
 
+import io
 import struct
 import zipfile
 import zlib
@@ -46,5 +47,9 @@ def save_npz(file: str | Path, arrays: Mapping[str, ArrayLike]) -> None:
             info = zipfile.ZipInfo(f"{key}.npy", date_time=_EPOCH)
             info.compress_type = zipfile.ZIP_DEFLATED
             info.external_attr = 0o644 << 16
-            with zf.open(info, "w", force_zip64=True) as member:
-                np.lib.format.write_array(member, np.asanyarray(value), allow_pickle=False)
+            # the member is made in memory and written with its sizes known: a streamed
+            # member (``zf.open(..., force_zip64=True)``, as numpy.savez) gets a local
+            # header that CPython changed in 3.11.4, so Debian's 3.11.2 wrote other bytes
+            buf = io.BytesIO()
+            np.lib.format.write_array(buf, np.asanyarray(value), allow_pickle=False)
+            zf.writestr(info, buf.getbuffer())
