@@ -202,6 +202,32 @@ class _Precedence:
         return np.minimum.accumulate(first_q[::-1])[::-1][:n]
 
 
+@dataclass
+class _Locks:
+    """The ``outlines_first`` rule as a greedy tour starts: per endpoint, 0 or + inf (a
+    fill row waiting for its region's outlines); per region, the outlines not yet drawn;
+    per region, its fill rows' endpoints (opened when the last outline is drawn); per
+    endpoint, whether it is an outline's."""
+
+    shut: NDArray[np.float64]
+    remaining: NDArray[np.intp]
+    fill_ends: list[NDArray[np.intp]]
+    outline_end: NDArray[np.bool_]
+
+    @classmethod
+    def of(cls, prec: _Precedence, m: int) -> _Locks:
+        shut = np.zeros(m)
+        remaining = np.bincount(prec.region[prec.outline], minlength=prec.regions)
+        fill_ends: list[NDArray[np.intp]] = []
+        outline_end = np.repeat(prec.outline, 2) if prec.enabled else np.zeros(m, bool)
+        if prec.enabled:
+            shut[np.repeat(~prec.outline & (remaining[prec.region] > 0), 2)] = np.inf
+            for r in range(prec.regions):
+                fills = np.flatnonzero((prec.region == r) & ~prec.outline)
+                fill_ends.append(np.sort(np.concatenate([2 * fills, 2 * fills + 1])))
+        return cls(shut, remaining, fill_ends, outline_end)
+
+
 def _greedy(
     costs: TransitionCosts, prec: _Precedence, firsts: list[int]
 ) -> list[tuple[NDArray[np.intp], NDArray[np.bool_]]]:
@@ -214,17 +240,11 @@ def _greedy(
     n = len(costs.pts) // 2
     tours = len(firsts)
     full = costs.matrix()
-    shut = np.zeros((tours, 2 * n))  # + inf: stroke drawn, or a fill waiting for outlines
+    locks = _Locks.of(prec, 2 * n)
+    shut = np.tile(locks.shut, (tours, 1))  # + inf: stroke drawn, or a fill waiting
     shut_strokes = shut.reshape(tours, n, 2)
-    remaining = np.tile(np.bincount(prec.region[prec.outline], minlength=prec.regions),
-                        (tours, 1))
-    fill_ends: list[NDArray[np.intp]] = []
-    outline_end = np.repeat(prec.outline, 2) if prec.enabled else np.zeros(2 * n, bool)
-    if prec.enabled:
-        shut[:, np.repeat(~prec.outline & (remaining[0][prec.region] > 0), 2)] = np.inf
-        for r in range(prec.regions):
-            fills = np.flatnonzero((prec.region == r) & ~prec.outline)
-            fill_ends.append(np.sort(np.concatenate([2 * fills, 2 * fills + 1])))
+    remaining = np.tile(locks.remaining, (tours, 1))
+    fill_ends, outline_end = locks.fill_ends, locks.outline_end
     visits = np.empty((n, tours), np.intp)
     tt = np.arange(tours)
     e = np.asarray(firsts, dtype=np.intp)
@@ -254,15 +274,9 @@ def _greedy_near(costs: TransitionCosts, prec: _Precedence, first: int
     rebuilt when half its endpoints are drawn."""
     m = len(costs.pts)
     n = m // 2
-    shut = np.zeros(m)  # + inf: stroke drawn, or a fill waiting for its outlines
-    remaining = np.bincount(prec.region[prec.outline], minlength=prec.regions)
-    fill_ends: list[NDArray[np.intp]] = []
-    outline_end = np.repeat(prec.outline, 2) if prec.enabled else np.zeros(m, bool)
-    if prec.enabled:
-        shut[np.repeat(~prec.outline & (remaining[prec.region] > 0), 2)] = np.inf
-        for r in range(prec.regions):
-            fills = np.flatnonzero((prec.region == r) & ~prec.outline)
-            fill_ends.append(np.concatenate([2 * fills, 2 * fills + 1]))
+    locks = _Locks.of(prec, m)
+    shut, remaining = locks.shut, locks.remaining
+    fill_ends, outline_end = locks.fill_ends, locks.outline_end
     drawn = np.zeros(m, bool)
     by_cost = costs.dst[np.lexsort((costs.drag_s, costs.src))]  # each src's drags, cheapest first
     tree_ids = np.arange(m)
@@ -327,6 +341,7 @@ def _two_opt(
     if n < 2:
         return seq, rev, passes, moves
     near: tuple[NDArray[np.intp], NDArray[np.intp]] | None = None
+    corrections, lifts = costs.corrections(), costs.lifts()
     work = 0
     jj = np.arange(n)
     while passes < max_passes:
@@ -342,7 +357,7 @@ def _two_opt(
         ends = _Ends(entry, exit_, pos, is_exit, t_prev, t_next, reach)
         if near is None and work + n * n <= TWO_OPT_FULL_WORK:
             work += n * n
-            best, best_j = _score_all(costs, ends)
+            best, best_j = _score_all(costs, ends, corrections, lifts)
         else:
             near = _near_pairs(costs) if near is None else near
             best, best_j = _score_near(costs, ends, *near)
@@ -391,16 +406,18 @@ def _moves_of(pairs_src: NDArray[np.intp], pairs_dst: NDArray[np.intp], ends: _E
     return k, i, j
 
 
-def _score_all(costs: TransitionCosts, ends: _Ends
+def _score_all(costs: TransitionCosts, ends: _Ends,
+               corrections: tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.float64]],
+               lifts: NDArray[np.float64] | None
                ) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
     """Per row i, the gain of its best move (reverse i..j; negative saves time) and its j,
-    every j scored, in row blocks."""
+    every j scored, in row blocks (``corrections`` and ``lifts``: the costs' own, made
+    once per search)."""
     entry, exit_, reach = ends.entry, ends.exit, ends.reach
     t_prev, t_next = ends.t_prev, ends.t_next
     n = len(entry)
     jj = np.arange(n)
-    src, dst, corr = costs.corrections()
-    lifts = costs.lifts()
+    src, dst, corr = corrections
     # drag corrections: term A c(exit[i-1], exit[j]); term B c(entry[i], entry[j+1])
     k, ci, cj = _moves_of(src, dst, ends)
     cc = corr[k]
