@@ -17,22 +17,15 @@ runs/<name>-arm/{i2c.jsonl (dry run), poses.jsonl} and the arm state file.
 
 from __future__ import annotations
 
+from tattotronix.app.draw import draw
 from tattotronix.config.schema import Config
-from tattotronix.control.drawing import draw_simulated
-from tattotronix.hardware.arm import draw_on_arm
-from tattotronix.hardware.servo_loop import draw_on_servos
 from tattotronix.io.outputs import Outputs
 from tattotronix.stage import run_stage
 
 
 def main(cfg: Config, out: Outputs) -> None:
-    """Draw on the configured backend."""
-    if cfg.backend.name == "arm":
-        draw_on_arm(cfg, out)
-    elif cfg.backend.name == "servo":
-        draw_on_servos(cfg, out)
-    else:
-        draw_simulated(cfg, out)
+    """Draw on the configured backend (:func:`tattotronix.app.draw.draw`)."""
+    draw(cfg, out)
 
 
 if __name__ == "__main__":

@@ -8,10 +8,13 @@ at any depth (``lint-imports``, with the contracts in ``pyproject.toml``). Top t
 * ``stage``: the runner of ``stages/<name>.py``, above the library it calls; only they import it.
 * ``report``: figures, the animation and the robot report present the results of every layer.
 * ``studies``: design studies, which run the pipeline, the control loop and the servo model.
+* ``app``: the use cases, once each (plan, preview, simulate, predict on the servos, draw on
+  the arm) and the one backend dispatch; the Python API (``tattotronix.plan``) is here.
 * ``hardware``: servo board, program and deploy gate, for drawings control and collision clear.
-* ``control``: a drawing simulated in closed loop on a plant, planned through the pipeline.
+* ``control | pipeline``: the joint controller and a timed drawing played closed loop on a
+  plant; artwork to toolpath to IK to trajectory in one process. Neither imports the other:
+  a drawing is planned, then played, by the application above them.
 * ``plants``: the simulated arms, built from the robot models, that control drives.
-* ``pipeline``: artwork to toolpath to IK to trajectory in one process, from the layers below.
 * ``trajectory``: times the IK'd path; its travel moves are checked by collision.
 * ``collision``: the collision model, its pairs and the trajectory check, on the robot.
 * ``kinematics``: the chain and the IK, which solve the toolpath's points (and read their kinds).
@@ -38,6 +41,22 @@ from pathlib import Path
 from types import FrameType
 
 __version__ = "0.1.0"
+
+#: the Python API (:mod:`tattotronix.app.api`), imported on first use, so that importing
+#: the package (every stage does, first) stays light
+_API = ("Arm", "Plan", "plan", "plan_strokes")
+
+
+def __getattr__(name: str) -> object:
+    if name in _API:
+        from tattotronix.app import api
+
+        return getattr(api, name)
+    raise AttributeError(f"module 'tattotronix' has no attribute '{name}'")
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_API])
 
 #: the folder a stage script lives in (``stages/`` beside this package, or a copy's)
 _STAGES = "stages"

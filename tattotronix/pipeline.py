@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -24,14 +24,14 @@ from tattotronix.config.schema import Config, IkConfig
 from tattotronix.errors import TattotronixError
 from tattotronix.kinematics import Chain, IkOptions, IkResult, solve_path
 from tattotronix.path.params import ToolpathParams
-from tattotronix.path.plan import check_needle, plan_toolpath
+from tattotronix.path.plan import Toolpath, check_needle, plan_toolpath
 from tattotronix.robot.description import RobotDescription
 from tattotronix.trajectory import JointLimits, JointPath, Trajectory, TrajectoryParams
 from tattotronix.trajectory import plan_trajectory as _plan_trajectory
 from tattotronix.trajectory.travel import TravelPlanner
 
-__all__ = ["check_reach", "drawing_inputs", "ik_settings", "mask_of", "plan_drawing",
-           "plan_drawing_on", "solve_ik",
+__all__ = ["PlannedDrawing", "check_reach", "drawing_inputs", "ik_settings", "mask_of",
+           "plan_drawing", "plan_drawing_all", "plan_drawing_on", "solve_ik",
            "straight_travel_baseline", "trajectory_from_path", "travel_planner"]
 
 log = logging.getLogger("tattotronix.pipeline")
@@ -190,6 +190,28 @@ def plan_drawing_on(cfg: Config, source: str | Path | None, name: str,
                     desc: RobotDescription) -> tuple[Trajectory, InkMask]:
     """:func:`plan_drawing`, and the ink mask it was planned on (a run scores its ink
     against it, so it is not made twice)."""
+    planned = plan_drawing_all(cfg, source, name, desc)
+    return planned.trajectory, planned.mask
+
+
+@dataclass(frozen=True)
+class PlannedDrawing:
+    """Every step of a drawing planned in memory: the ink mask it was planned on, the
+    toolpath, the IK path and the trajectory."""
+
+    mask: InkMask
+    toolpath: Toolpath
+    path: JointPath
+    trajectory: Trajectory
+
+
+def plan_drawing_all(cfg: Config, source: str | Path | None, name: str,
+                     desc: RobotDescription) -> PlannedDrawing:
+    """:func:`plan_drawing`, keeping every step's result (the Python API's plan).
+
+    Raises:
+        TattotronixError: as :func:`plan_drawing`.
+    """
     mask, vector = drawing_inputs(cfg, source, name, desc)
     params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
     tp = plan_toolpath(mask, params, vector=vector)
@@ -200,4 +222,4 @@ def plan_drawing_on(cfg: Config, source: str | Path | None, name: str,
     path = JointPath.from_arrays(desc.joint_names, res.q, tcp, tp.path.kind, tp.path.uvz_mm)
     traj = trajectory_from_path(cfg, path, desc)
     log.info("planned %s in memory: %d points, %.1f s", name, len(traj.t), traj.duration_s)
-    return traj, mask
+    return PlannedDrawing(mask, tp, path, traj)

@@ -427,7 +427,7 @@ def test_config_has_the_draw_defaults() -> None:
 
 def test_stored_drawing_is_played_as_is_and_retimed_for_another_speed(
         tmp_path: Path, small_drawing: Trajectory, desc: RobotDescription) -> None:
-    from tattotronix.control.drawing import resolve_drawing
+    from tattotronix.app.drawings import resolve_drawing
     from tattotronix.io.provenance import provenance_json
 
     cfg = compose_settings(["art=small"])

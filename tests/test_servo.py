@@ -15,15 +15,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from tattotronix.app.drawings import resolve_drawing
 from tattotronix.config.params import compose_settings
 from tattotronix.config.schema import Config
-from tattotronix.control.drawing import (
-    ClosedLoop,
-    Drawing,
-    resolve_drawing,
-    run_closed_loop,
-    score_ink,
-)
+from tattotronix.control.drawing import ClosedLoop, Drawing, run_closed_loop, score_ink
 from tattotronix.control.ink import compare_ink
 from tattotronix.errors import TattotronixError
 from tattotronix.hardware.servo_loop import run_servo_loop

@@ -14,13 +14,9 @@ from typing import Any
 import numpy as np
 import pytest
 
+from tattotronix.app.drawings import resolve_drawing, score_and_write
 from tattotronix.config.params import compose_settings
-from tattotronix.control.drawing import (
-    Drawing,
-    resolve_drawing,
-    run_closed_loop,
-    score_and_write,
-)
+from tattotronix.control.drawing import Drawing, run_closed_loop
 from tattotronix.control.ink import compare_ink
 from tattotronix.control.tracking import ERROR_KEYS, tracking_errors
 from tattotronix.control.verdict import VERDICTS, Tolerance, judge, length_text

@@ -8,6 +8,6 @@
 * :mod:`~tattotronix.control.tracking`: the errors as the original scored them
   (docs/original.md, "5.5 Tracking error").
 * :mod:`~tattotronix.control.ink`: what the simulated needle drew, against the plan.
-* :mod:`~tattotronix.control.drawing`: ``draw.py`` on a simulated plant (pick, run, score,
-  write).
+* :mod:`~tattotronix.control.drawing`: a timed drawing played closed loop on a plant, and
+  its ink (which drawing, and what a run writes, are the application's: ``tattotronix.app``).
 """

@@ -65,15 +65,13 @@ from numpy.typing import NDArray
 from tattotronix.config.schema import Config, HardwareConfig
 from tattotronix.errors import Interrupted, TattotronixError
 from tattotronix.hardware.pca9685 import PCA9685, BusError, RecordingBus, SMBusLike, open_bus
-from tattotronix.hardware.preview import preview_of
 from tattotronix.hardware.program import ServoProgram
 from tattotronix.hardware.servos import Calibration, load_calibration
-from tattotronix.io.artifacts import run_dir, run_label
+from tattotronix.io.artifacts import run_label
 from tattotronix.io.jsontypes import JsonDict
-from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain, IkOptions, solve_path
 from tattotronix.plants.servo_plant import ServoSpec
-from tattotronix.robot.description import RobotDescription, build_description
+from tattotronix.robot.description import RobotDescription
 
 __all__ = ["DRY_RUN_STATE", "RESUME_MARGIN_S", "TEST_HOOK_ENV", "ArmSession", "ArmState",
            "Paused", "calibration_from_config", "check_drawing_clear", "ramp",
@@ -933,61 +931,3 @@ def state_file_of(cfg: Config, data: Path, folder: Path) -> Path:
     if cfg.dry_run:
         return folder / DRY_RUN_STATE
     return Path(data).joinpath(*Path(str(cfg.hardware.state_file)).parts)
-
-
-def draw_on_arm(cfg: Config, out: Outputs) -> JsonDict:
-    """``draw.py backend=arm``: compile the drawing and stream it (see the module docstring).
-
-    Prints the plan first (:mod:`tattotronix.hardware.preview`); ``preview=true`` stops
-    there with ``preview.png``. Appends to ``runs/<name>-arm/{i2c.jsonl (dry run),
-    poses.jsonl}`` under the write root (``runs/`` by hand: ``io.outputs.write_root``),
-    writes the arm state file, and on completion ``metrics/runs/<name>-arm.json``.
-    """
-    from tattotronix.control.drawing import resolve_drawing
-    from tattotronix.pipeline import ik_settings
-
-    desc = build_description(cfg.robot)
-    if cfg.window is not None:
-        raise TattotronixError("window= is for simulated backends; the arm draws the whole "
-                               "drawing (resume=true continues a stopped one)")
-    calibration_from_config(cfg.hardware, desc.joint_names)  # a bad one fails before planning
-    drawing = resolve_drawing(cfg, out.data, desc)
-    check_drawing_clear(cfg, desc, drawing.t, drawing.q)
-    program, calib = build_program(cfg, desc, drawing.t, drawing.q, drawing.qd)
-    folder = run_dir(out.root, run_label(drawing.name, "arm"))
-    chain = Chain.from_description(desc)
-    preview = preview_of(drawing.name, drawing.t, drawing.q, drawing.kind, program.frames,
-                         program.frame_hz, chain, np.asarray(cfg.toolpath.panel_origin),
-                         np.asarray(cfg.robot.panel.centre), np.asarray(cfg.robot.panel.size))
-    log.info("%s", preview.text())  # before anything reaches the bus
-    if cfg.preview:
-        image = preview.figure(out.tmp_path(folder / PREVIEW_IMAGE))
-        log.info("arm %s: preview only (preview=true): nothing sent, no state touched",
-                 drawing.name)
-        return {"status": "preview", "duration_s": preview.duration_s,
-                "entries": preview.entries, "box_mm": list(preview.box_mm),
-                "fits": preview.fits, "image": str(image)}
-    surface = float(cfg.toolpath.panel_origin[2])
-    clearance = surface + cfg.toolpath.clearance_m
-    speed = float(cfg.hardware.ramp_rad_s)
-    if not (np.isfinite(speed) and speed > 0):
-        raise TattotronixError(f"hardware.ramp_rad_s={speed}: give a positive speed in rad/s")
-    session = ArmSession(
-        name=drawing.name, program=program, calib=calib, chain=chain,
-        run_dir=folder, state_file=state_file_of(cfg, out.data, folder),
-        clearance_z_m=clearance, surface_z_m=surface, feed_m_s=cfg.toolpath.feed_mark_m_s,
-        ramp_rad_s=speed, ik=ik_settings(cfg.ik), dry_run=bool(cfg.dry_run),
-        realtime=bool(cfg.realtime), resume=bool(cfg.resume),
-        fail_after_writes=cfg.hardware.fail_after_writes,
-        save_every_s=float(cfg.hardware.save_every_s))
-    log.info("arm %s: %d frames at %g Hz (%.1f s), %s%s", drawing.name, program.frames,
-             program.frame_hz, program.frames / program.frame_hz,
-             "dry run" if session.dry_run else f"{calib.device} at 0x{calib.address:02x}",
-             ", resuming" if session.resume else "")
-    summary = session.run()
-    summary["program_metrics"] = program.metrics(calib, session.chain)
-    out.write_json(out.path("metrics", "runs", f"{drawing.name}-arm.json"), summary)
-    log.info("arm %s: %s, %d frames sent, %d channel writes, %.1f s", drawing.name,
-             summary["status"], summary["frames_sent"], summary["channel_writes"],
-             summary["wall_s"])
-    return summary

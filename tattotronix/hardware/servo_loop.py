@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from tattotronix.config.schema import Config
-from tattotronix.control.drawing import ClosedLoop, Drawing, resolve_drawing, score_and_write
+from tattotronix.control.drawing import ClosedLoop, Drawing, Progress
 from tattotronix.control.reference import reference_at_ticks, resolve_window
 from tattotronix.control.simulate import Run, saturation
 from tattotronix.control.verdict import Tolerance
@@ -46,12 +46,11 @@ from tattotronix.hardware.program import ServoProgram
 from tattotronix.hardware.servo_model import joint_servos, with_measured_fits
 from tattotronix.hardware.servos import Calibration
 from tattotronix.io.jsontypes import JsonDict
-from tattotronix.io.outputs import Outputs
 from tattotronix.plants.base import Array, PlantSettings
 from tattotronix.plants.servo_plant import ServoSpec
-from tattotronix.robot.description import RobotDescription, build_description
+from tattotronix.robot.description import RobotDescription
 
-__all__ = ["ServoSetup", "draw_on_servos", "run_servo_loop", "servo_commands", "servo_setup"]
+__all__ = ["ServoSetup", "run_servo_loop", "servo_commands", "servo_setup"]
 
 log = logging.getLogger("tattotronix.draw")
 
@@ -127,7 +126,6 @@ def run_servo_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Dra
     Raises:
         TattotronixError: missing models, a bad window, or a servo the catalogue lacks.
     """
-    from tattotronix.control.drawing import _Progress
     from tattotronix.plants.servo_plant import ServoArm
 
     mjcf = data / "robot" / f"{desc.name}.xml"
@@ -151,7 +149,7 @@ def run_servo_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Dra
     log.info("draw %s: %s drawing, %.1f..%.1f s, %d frames at %g Hz, servos %s, plant %g Hz",
              label, drawing.origin, t0, last / prog.frame_hz, len(command), prog.frame_hz,
              "/".join(dict.fromkeys(s.type for s in setup.specs)), 1.0 / settings.dt_s)
-    bar = _Progress((len(command) - 1) / prog.frame_hz, label, progress)
+    bar = Progress((len(command) - 1) / prog.frame_hz, label, progress)
     wall0 = time.perf_counter()
     try:
         arm = ServoArm(mjcf, settings, setup.specs, lag=bool(cfg.servo.lag),
@@ -197,21 +195,3 @@ def _servo_wn(specs: tuple[ServoSpec, ...], lag: bool, ideal_wn: float) -> float
     if not lag:
         return ideal_wn
     return float(min(s.kp / s.back_emf for s in specs))
-
-
-def draw_on_servos(cfg: Config, out: Outputs) -> JsonDict:
-    """``draw.py backend=servo``: the configured drawing on the servo plant, scored and
-    written as every simulated backend's run (:func:`~tattotronix.control.drawing.
-    draw_simulated`).
-
-    Returns:
-        The run metrics (also written to ``metrics/runs/<name>-servo.json``).
-    """
-    desc = build_description(cfg.robot)
-    drawing = resolve_drawing(cfg, out.data, desc)
-    if cfg.viewer:
-        log.warning("viewer=true: the servo plant has no viewer (it plays whole stretches "
-                    "in C); running without one")
-    loop = run_servo_loop(cfg, out.data, desc, drawing, window=cfg.window,
-                          progress=bool(cfg.draw.progress))
-    return score_and_write(cfg, out, loop, desc)

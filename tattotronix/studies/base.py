@@ -40,7 +40,7 @@ override that is not a swept key is added to the case name
 :meth:`ClosedLoopStudy.stage_body` is the whole of a study's stage script.
 
 A drawing whose path settings differ from the stored trajectory's (approach, step) is
-re-planned in memory from the artwork (:func:`~tattotronix.control.drawing.resolve_drawing`).
+re-planned in memory from the artwork (:func:`~tattotronix.app.drawings.resolve_drawing`).
 
 Adding a study: its module here (a subclass, and ``STUDY``), its line in
 :mod:`tattotronix.studies.registry` (for the ``studies`` stage), its settings in
@@ -63,16 +63,11 @@ from typing import TYPE_CHECKING, ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from tattotronix.app.drawings import resolve_drawing
 from tattotronix.art.artwork import artwork_name
 from tattotronix.config.params import with_overrides
 from tattotronix.config.schema import Config, StudyConfig
-from tattotronix.control.drawing import (
-    ClosedLoop,
-    Drawing,
-    resolve_drawing,
-    run_closed_loop,
-    warm_up,
-)
+from tattotronix.control.drawing import ClosedLoop, Drawing, run_closed_loop, warm_up
 from tattotronix.control.tracking import entry_times
 from tattotronix.control.verdict import length_text
 from tattotronix.errors import ConfigError, TattotronixError

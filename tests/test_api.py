@@ -1,0 +1,151 @@
+"""The Python API (``tattotronix.plan``; README, "The Python API").
+
+* The README's example runs as written, on a generated logo (no CAD meshes needed).
+* A plan made through the API is the plan the pipeline makes from the same inputs.
+* Strokes land where they were sent; bad strokes, bad keywords and bad settings get one
+  clear error; ``import tattotronix`` stays light.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import tattotronix as tt
+from tattotronix.config.params import compose_settings
+from tattotronix.errors import ConfigError, TattotronixError
+from tests.conftest import ROOT, small_art
+
+LOGO = """<svg xmlns="http://www.w3.org/2000/svg" width="80mm" height="30mm" viewBox="0 0 80 30">
+<path fill-rule="evenodd" d="M2 2H38V28H2Z M10 9H30V21H10Z"/>
+<circle cx="60" cy="15" r="12"/></svg>"""
+
+
+def _readme_example() -> str:
+    text = (ROOT / "README.md").read_text()
+    section = text[text.index("## The Python API"):]
+    match = re.search(r"```python\n(.*?)```", section, re.S)
+    assert match, "README's Python API section has no python block"
+    return match.group(1)
+
+
+@pytest.mark.slow
+def test_readme_example_runs_as_written(tmp_path: Path) -> None:
+    (tmp_path / "logo.svg").write_text(LOGO)
+    script = tmp_path / "example.py"
+    script.write_text(_readme_example() + (
+        "\nimport json\n"
+        "json.dump({'stats': d.stats, 'run': run['verdict'], 'max': run['marking_max_um'],\n"
+        "           'real': real['verdict'], 'arm': arm['status'], 'strokes': s.stats,\n"
+        "           'workdir': str(d.workdir)}, open('out.json', 'w'))\n"))
+    env = {k: v for k, v in os.environ.items() if k != "TATTOTRONIX_CAD_DIR"}
+    env["MPLBACKEND"] = "Agg"
+    proc = subprocess.run([sys.executable, str(script)], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads((tmp_path / "out.json").read_text())
+    assert out["stats"]["entries"] >= 2 and out["stats"]["duration_s"] > 0
+    assert out["stats"]["bleed_max_mm"] <= 0.1
+    assert out["run"] == "ok" and out["max"] < 20  # the default controller's goal
+    assert out["real"] in ("ok", "out-of-tolerance")  # hobby servos miss by millimetres
+    assert out["arm"] == "done"
+    assert out["strokes"]["entries"] == 2
+    assert (tmp_path / "preview.png").stat().st_size > 10_000
+    with np.load(tmp_path / "logo.npz", allow_pickle=False) as z:
+        assert {"joints", "t", "q", "qd", "qdd", "kind", "marked", "tcp",
+                "provenance"} <= set(z.files)
+    work = Path(out["workdir"])
+    for backend in ("mujoco", "servo"):
+        assert (work / "runs" / f"logo-{backend}" / "ink.png").is_file()
+        assert (work / "metrics" / "runs" / f"logo-{backend}.json").is_file()
+    assert (work / "runs" / "logo-arm" / "i2c.jsonl").stat().st_size > 0
+
+
+def test_plan_is_the_pipelines_plan(tmp_path: Path) -> None:
+    """The API's plan and the pipeline's (``draw.py artwork.source=...``) from the same
+    file and settings: the same points, times and angles, to the bit."""
+    from tattotronix.pipeline import plan_drawing
+    from tattotronix.robot.description import build_description
+
+    art = small_art(tmp_path / "small.png")
+    d = tt.plan(art, width_mm=24, workdir=tmp_path / "work")
+    cfg = compose_settings([f"artwork.source={art}", "mask.width_mm=24"])
+    traj = plan_drawing(cfg, art, "small", build_description(cfg.robot))
+    assert d.name == "small"
+    for key in ("t", "q", "qd", "kind"):
+        assert np.array_equal(getattr(d.trajectory, key), getattr(traj, key)), key
+    assert d.stats["entries"] == d.toolpath.metrics.entries
+    saved = d.save(tmp_path / "small.npz")
+    with np.load(saved, allow_pickle=False) as z:
+        assert np.array_equal(z["q"], traj.q)
+        prov = json.loads(str(z["provenance"]))
+    assert set(prov["inputs"]) == {"artwork", "urdf"}
+    png = d.preview(tmp_path / "p" / "preview.png")
+    assert png.stat().st_size > 10_000
+
+
+def test_strokes_land_where_sent(tmp_path: Path) -> None:
+    strokes = [np.array([(-20.0, -10.0), (20.0, -10.0), (20.0, 10.0)]),
+               np.array([(-30.0, 15.0), (-10.0, 25.0)])]
+    d = tt.plan_strokes(strokes, workdir=tmp_path)
+    assert d.stats["entries"] == 2
+    uv = d.toolpath.path.uvz_mm[d.toolpath.path.kind == 1][:, :2]
+
+    def dist(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+        ab = b - a
+        t = np.clip(((p - a) @ ab) / (ab @ ab), 0, 1)
+        return np.linalg.norm(p - (a + t[:, None] * ab), axis=1)
+
+    segs = [(s[i], s[i + 1]) for s in strokes for i in range(len(s) - 1)]
+    near = np.min([dist(uv, a, b) for a, b in segs], axis=0)
+    assert near.max() < 0.1  # on the polylines (the mask's pixel is 0.25 mm)
+    marked = d.stats["marked_mm"]
+    assert marked == pytest.approx(40 + 20 + np.hypot(20, 10), rel=0.03)
+    assert (tmp_path / "strokes.svg").is_file()
+
+
+@pytest.mark.parametrize(("strokes", "match"), [
+    ([], "no strokes"),
+    ([[(0.0, 0.0)]], "at least two"),
+    ([[(0.0, 0.0), (float("nan"), 1.0)]], "finite"),
+    ([[(0.0, 0.0), (500.0, 0.0)]], r"\(500\.0, 0\.0\) mm is off the panel"),
+])
+def test_bad_strokes_are_refused(strokes: list[list[tuple[float, float]]], match: str,
+                                 tmp_path: Path) -> None:
+    with pytest.raises(TattotronixError, match=match):
+        tt.plan_strokes(strokes, workdir=tmp_path)
+
+
+def test_bad_keywords_and_settings(tmp_path: Path) -> None:
+    art = small_art(tmp_path / "small.png")
+    with pytest.raises(TypeError, match="unexpected keyword argument 'widht_mm'"):
+        tt.plan(art, widht_mm=20)
+    with pytest.raises(ConfigError):
+        tt.plan(art, overrides=["toolpath.pitch_mm=-1"])
+    with pytest.raises(TattotronixError, match="no such file|not found|cannot"):
+        tt.plan(tmp_path / "missing.png")
+
+
+def test_simulate_refuses_the_servo_and_the_arm(tmp_path: Path) -> None:
+    d = tt.plan_strokes([[(-5.0, 0.0), (5.0, 0.0)]], workdir=tmp_path)
+    for backend in ("servo", "arm"):
+        with pytest.raises(TattotronixError, match="predict|draw"):
+            d.simulate(backend)
+
+
+def test_import_stays_light() -> None:
+    """``import tattotronix`` (every stage's first import) loads no API; ``tt.plan``
+    loads it on first use."""
+    code = ("import sys, tattotronix as tt; assert 'tattotronix.app' not in sys.modules; "
+            "assert callable(tt.plan) and 'tattotronix.app.api' in sys.modules; "
+            "assert 'plan_strokes' in dir(tt)")
+    subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
+    with pytest.raises(AttributeError):
+        tt.no_such_thing  # noqa: B018
