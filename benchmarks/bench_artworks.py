@@ -121,6 +121,7 @@ def text_png(path: Path) -> None:
 
     im = Image.new("L", (1500, 700), 255)
     draw = ImageDraw.Draw(im)
+    font: ImageFont.FreeTypeFont | ImageFont.ImageFont
     try:
         font = ImageFont.truetype("DejaVuSans-Bold.ttf", 230)
     except OSError:
@@ -281,6 +282,11 @@ def _line(res: Result) -> str:
     return f"{res.name:15s} " + " ".join(cells)
 
 
+def _number(value: object) -> float:
+    """A figure as a float (NaN where there is none)."""
+    return float(value) if isinstance(value, int | float) else math.nan
+
+
 def bench(repeat: int) -> list[tuple[str, float, str, str]]:
     """For ``benchmarks/run.py``: the planning figures as rows (no simulation)."""
     rows = []
@@ -289,9 +295,9 @@ def bench(repeat: int) -> list[tuple[str, float, str, str]]:
             rows.append((f"{res.name}: error", math.nan, "", res.error))
             continue
         f = res.figures
-        rows.append((f"{res.name}: entries (compensated)", float(f["entries"]), "",
+        rows.append((f"{res.name}: entries (compensated)", _number(f["entries"]), "",
                      f"{f['entries_uncomp']} without compensation"))
-        rows.append((f"{res.name}: cycle over marking", float(f["cycle"]), "",
+        rows.append((f"{res.name}: cycle over marking", _number(f["cycle"]), "",
                      "goal <= 1.10"))
     return rows
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from run import Row, median_time
 
-from tattotronix.collision.check import check_trajectory
+from tattotronix.collision.check import TrajectoryClearance, check_trajectory
 from tattotronix.collision.model import CollisionModel
 from tattotronix.config.params import compose_settings
 from tattotronix.io.artifacts import TrajectoryRecord
@@ -40,7 +40,7 @@ def _poses() -> tuple[np.ndarray, np.ndarray, str]:
 def bench(repeat: int) -> list[Row]:
     t, q, label = _poses()
     rows: list[Row] = []
-    setups = [("k-DOP", [])]
+    setups: list[tuple[str, list[str]]] = [("k-DOP", [])]
     cad = os.environ.get("TATTOTRONIX_CAD_DIR")
     if cad:
         setups.append(("mesh hulls", [f"robot.cad_dir={cad}"]))
@@ -48,9 +48,14 @@ def bench(repeat: int) -> list[Row]:
         cfg = compose_settings(overrides)
         model = CollisionModel(build_description(cfg.robot))
         margin = cfg.collision.margin_m
-        el, rep = median_time(lambda m=model, c=cfg, g=margin: check_trajectory(
-            m, t, q, margin_m=g, plunge_m=float(c.toolpath.plunge_mm) / 1000,
-            resolution_m=float(c.collision.resolution_mm) / 1000), repeat)
+        plunge_m = float(cfg.toolpath.plunge_mm) / 1000
+        resolution_m = float(cfg.collision.resolution_mm) / 1000
+
+        def check(m: CollisionModel = model, g: float = margin, p: float = plunge_m,
+                  r: float = resolution_m) -> TrajectoryClearance:
+            return check_trajectory(m, t, q, margin_m=g, plunge_m=p, resolution_m=r)
+
+        el, rep = median_time(check, repeat)
         met = rep.metrics()
         rows.append((f"check {len(q)} points [{label}, {geometry}]", el, "s",
                      f"{rep.samples} poses incl. {rep.samples - len(q)} bisections; least "

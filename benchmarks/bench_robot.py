@@ -6,6 +6,7 @@ Ratios are against Pinocchio measured in the same run.
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -39,7 +40,10 @@ def bench(repeat: int) -> list[Row]:
         for what in ("frames", "mass_matrix", "gravity"):
             for name, arm in arms.items():
                 fn = getattr(arm, what)
-                t, _ = median_time(lambda fn=fn: [fn(q) for q in qs], repeat)
+                def calls(fn: Callable[[np.ndarray], object] = fn) -> list[object]:
+                    return [fn(q) for q in qs]
+
+                t, _ = median_time(calls, repeat)
                 per_call = t / CALLS * 1e6
                 base.setdefault(what, per_call)
                 rows.append((f"{what} [{name}]", per_call, "us/call",

@@ -18,6 +18,7 @@ Not timed (one run each): the figures are the tracking, not the wall time.
 
 from __future__ import annotations
 
+import math
 import tempfile
 from pathlib import Path
 
@@ -79,7 +80,9 @@ def _row(name: str, source: Path, overrides: list[str]) -> list[Row]:
             f"cycle x{tm['cycle_over_marking']:.3f}, {tm['entries']} entries, peak jerk "
             f"{tm['peak_jerk_rad_s3_max']:.0f} rad/s^3, tip "
             f"{tm['peak_tip_accel_marking_mm_s2']:.1f} mm/s^2")
-    return [(f"worst marking error [{name}]", float(m["marking_max_um"]), "um", note)]
+    worst = m["marking_max_um"]
+    return [(f"worst marking error [{name}]",
+             float(worst) if isinstance(worst, int | float) else math.nan, "um", note)]
 
 
 def bench(repeat: int) -> list[Row]:
