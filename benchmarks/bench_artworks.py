@@ -180,11 +180,11 @@ def worst_line(lines_svg_path: str, uv_mm: np.ndarray, marking: np.ndarray,
 
 def plan_figures(art: Art) -> dict[str, float | int | str | None]:
     """Plan ``art`` with and without compensation, and its trajectory; the figures."""
+    from tattotronix.app.pipeline import drawing_inputs, solve_ik, trajectory_from_path
     from tattotronix.config.params import compose_settings, with_overrides
     from tattotronix.kinematics import Chain
     from tattotronix.path.params import ToolpathParams
     from tattotronix.path.plan import plan_toolpath
-    from tattotronix.pipeline import drawing_inputs, solve_ik, trajectory_from_path
     from tattotronix.robot.description import build_description
     from tattotronix.trajectory import JointPath
 

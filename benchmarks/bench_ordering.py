@@ -2,7 +2,7 @@
 
 A generated SVG of short stroked lines (0.4 mm wide, 0.8 to 3 mm long, at random places
 and angles on a 150 x 100 mm field) is planned in vector mode, as the toolpath stage
-plans it (:func:`~tattotronix.pipeline.drawing_inputs`, then
+plans it (:func:`~tattotronix.app.pipeline.drawing_inputs`, then
 :func:`~tattotronix.path.plan.plan_toolpath`); each line is a stroke. Rows, medians over
 ``repeat`` runs:
 
@@ -29,10 +29,10 @@ import numpy as np
 from run import Row
 
 import tattotronix.path.order as order_mod
+from tattotronix.app.pipeline import drawing_inputs
 from tattotronix.config.params import compose_settings
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.plan import OrderResult, plan_toolpath
-from tattotronix.pipeline import drawing_inputs
 
 FIELD_MM = (150.0, 100.0)
 

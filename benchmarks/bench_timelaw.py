@@ -26,11 +26,12 @@ import numpy as np
 from PIL import Image, ImageDraw
 from run import Row
 
+from tattotronix.app.pipeline import plan_drawing
+from tattotronix.app.simulate import run_closed_loop
 from tattotronix.art.artwork import builtin_path
 from tattotronix.config.params import compose_settings
-from tattotronix.control.drawing import Drawing, run_closed_loop
+from tattotronix.control.drawing import Drawing
 from tattotronix.kinematics import Chain
-from tattotronix.pipeline import plan_drawing
 from tattotronix.robot.description import build_description
 
 DATA = Path(__file__).resolve().parents[1] / "data"

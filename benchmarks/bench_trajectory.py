@@ -16,11 +16,11 @@ from pathlib import Path
 
 from run import Row, median_time
 
+from tattotronix.app.pipeline import travel_planner
 from tattotronix.config.params import compose_settings
 from tattotronix.io.artifacts import IkRecord
 from tattotronix.kinematics import Chain, solve_path
 from tattotronix.kinematics.synthetic import logo_like_strokes, stroke_path
-from tattotronix.pipeline import travel_planner
 from tattotronix.robot.description import build_description
 from tattotronix.trajectory import (
     JointLimits,
@@ -67,7 +67,7 @@ def bench(repeat: int) -> list[Row]:
     cfg = compose_settings()
     desc = build_description(cfg.robot)
     chain = Chain.from_description(desc)
-    params = TrajectoryParams.from_config(cfg)
+    params = TrajectoryParams.from_settings(cfg.trajectory, cfg.toolpath, cfg.speed)
     limits = JointLimits.from_description(desc, params.accel_rad_s2)
     planner = travel_planner(cfg, desc, chain, limits)
     rows: list[Row] = []

@@ -19,8 +19,6 @@ import tattotronix  # noqa: F401
 import logging
 from pathlib import Path
 
-import numpy as np
-
 from tattotronix.art.artwork import artwork_name
 from tattotronix.config.schema import Config
 from tattotronix.io.artifacts import RunLogRecord, TrajectoryRecord, run_label
@@ -47,16 +45,16 @@ def main(cfg: Config, out: Outputs) -> None:
     mjcf = out.require(out.input("robot", f"{desc.name}.xml"), "robot")
     run_rel = RunLogRecord.path("", label=run_label(name, BACKEND)).parts
     run_file = out.input(*run_rel)  # a simulate run by hand's log, else the pipeline's
-    run: dict[str, np.ndarray] = {}
-    if run_file.exists():
-        rec = RunLogRecord.load_run(out.input_root(*run_rel), name, BACKEND)
-        run = {"run_t": rec.t, "run_q": rec.q, "run_tip_m": rec.tip}
-    else:
+    rec = (RunLogRecord.load_run(out.input_root(*run_rel), name, BACKEND)
+           if run_file.exists() else None)
+    if rec is None:
         log.info("animate %s: no run log at %s: rendering the planned trajectory (run the "
                  "'simulate' stage to draw what the arm did)", name, run_file)
     clip = drawing_clip(desc, urdf, name, traj.t, traj.q, traj.kind, traj.tcp, traj.marked,
                         cfg.toolpath.panel_origin, run_label=f"the simulated run ({BACKEND})",
-                        **run)
+                        run_t=None if rec is None else rec.t,
+                        run_q=None if rec is None else rec.q,
+                        run_tip_m=None if rec is None else rec.tip)
     fig_dir = out.path("figures", name)
     two_d, three_d = render_drawing_both(clip, mjcf, _videos(out, fig_dir, "drawing", name),
                                          _videos(out, fig_dir, "drawing3d", name))

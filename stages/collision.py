@@ -62,7 +62,8 @@ def main(cfg: Config, out: Outputs) -> None:
     log.info("collision %s (%s): %d poses, %d segments bisected; least clearance %.2f mm "
              "(%s), margin %g mm; needle %.3f mm deep (plunge %g mm); %.2f s", name,
              model.geometry, rep.samples, rep.bisected, metrics["min_clearance_mm"],
-             " and ".join(metrics["worst_pair"]), metrics["margin_mm"],
+             " and ".join(map(str, pair)) if isinstance(pair := metrics["worst_pair"], list)
+             else str(pair), metrics["margin_mm"],
              metrics["needle_depth_max_mm"], metrics["plunge_mm"], rep.timings_s["total"])
 
 

@@ -13,11 +13,12 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
+from tattotronix.app.arm import build_program
 from tattotronix.art.artwork import artwork_name
 from tattotronix.config.schema import Config
-from tattotronix.hardware.arm import build_program
 from tattotronix.hardware.gate import require_checked
 from tattotronix.io.artifacts import ServoProgramRecord, TrajectoryRecord, make_provenance
+from tattotronix.io.jsontypes import json_number, json_object
 from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain
 from tattotronix.robot.description import build_description
@@ -45,8 +46,8 @@ def main(cfg: Config, out: Outputs) -> None:
     out.write_json(out.path("metrics", "deploy", f"{name}.json"), m)
     log.info("deploy %s: %d frames, %.2f us a count; quantisation up to %.3f deg, tip %.2f mm "
              "worst (%.2f mean)", name, m["frames"], m["count_us"],
-             max(m["quantisation_deg"].values()), m["quantisation_tip_mm_max"],
-             m["quantisation_tip_mm_mean"])
+             max(json_number(v) for v in json_object(m["quantisation_deg"]).values()),
+             m["quantisation_tip_mm_max"], m["quantisation_tip_mm_mean"])
 
 
 if __name__ == "__main__":

@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import logging
 
+from tattotronix.app.pipeline import solve_ik
 from tattotronix.art.artwork import artwork_name
 from tattotronix.config.schema import Config
 from tattotronix.io.artifacts import IkRecord, ToolpathRecord, make_provenance
 from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain, PinocchioTip, conditioning, verify
-from tattotronix.pipeline import solve_ik
 from tattotronix.robot.description import build_description
 from tattotronix.stage import run_stage
 
@@ -30,21 +30,21 @@ def main(cfg: Config, out: Outputs) -> None:
     urdf = out.require(out.input("robot", f"{desc.name}.urdf"), "robot")
     src = out.require(out.input(*ToolpathRecord.path("", name=name).parts), "toolpath")
     tpr = ToolpathRecord.load(src)
-    path = {"uvz_mm": tpr.uvz_mm, "xyz_m": tpr.xyz_m, "kind": tpr.kind, "stroke": tpr.stroke}
     ik = cfg.ik
     chain = Chain.from_description(desc)
-    n = len(path["xyz_m"])
+    n = len(tpr.xyz_m)
 
     def progress(done: int, total: int) -> None:
         log.info("ik %s: %d / %d points", name, done, total)
 
-    res = solve_ik(chain, path["xyz_m"], path["uvz_mm"], ik,
+    res = solve_ik(chain, tpr.xyz_m, tpr.uvz_mm, ik,
                    progress=progress if n > 50_000 else None)  # ~0.1 s per 20k points
-    check = verify(PinocchioTip.from_urdf(urdf, desc.tip_frame), res, path["xyz_m"],
+    check = verify(PinocchioTip.from_urdf(urdf, desc.tip_frame), res, tpr.xyz_m,
                    needle_axis=list(ik.needle_axis), pos_tol_m=ik.verify_pos_tol_m,
                    axis_tol_rad=ik.verify_axis_tol_rad)
-    cond = conditioning(chain, res.q).summary()
-    cond["worst_point_mm"] = [float(v) for v in path["uvz_mm"][cond["worst_index"]]]
+    conditions = conditioning(chain, res.q)
+    cond = conditions.summary()
+    cond["worst_point_mm"] = [float(v) for v in tpr.uvz_mm[conditions.worst]]
     tcp, _ = chain.fk(res.q)
     IkRecord(joints=desc.joint_names, q=res.q, tcp=tcp, residual=res.residual,
              uvz_mm=tpr.uvz_mm, xyz_m=tpr.xyz_m, kind=tpr.kind, stroke=tpr.stroke).save(
@@ -58,7 +58,8 @@ def main(cfg: Config, out: Outputs) -> None:
     out.write_timings("ik", name, timings)
     log.info("ik %s: %d points, %.1f %% converged, worst residual %.2e, %.3f s "
              "(%.0f points/s), cond %.1f .. %.1f", name, res.points, res.converged_pct,
-             res.worst_residual, res.solve_s, timings["points_per_s"], *cond["cond"])
+             res.worst_residual, res.solve_s, timings["points_per_s"],
+             float(conditions.cond.min()), float(conditions.cond.max()))
 
 
 if __name__ == "__main__":

@@ -21,6 +21,7 @@ import tattotronix  # noqa: F401
 # isort: split
 import logging
 import time
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -29,6 +30,7 @@ from tattotronix.art.artwork import artwork_name
 from tattotronix.config.schema import Config
 from tattotronix.errors import TattotronixError
 from tattotronix.io.artifacts import IkRecord
+from tattotronix.io.jsontypes import json_floats
 from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain, PinocchioTip
 from tattotronix.robot.description import build_description
@@ -38,15 +40,14 @@ from tattotronix.studies import kinematics as study
 log = logging.getLogger("tattotronix.kinematics")
 
 
-def _load_ik(src: Any, n_joints: int) -> dict[str, np.ndarray]:
+def _load_ik(src: Path, n_joints: int) -> IkRecord:
     rec = IkRecord.load(src)
-    data = {"q": rec.q, "kind": rec.kind, "uvz_mm": rec.uvz_mm, "xyz_m": rec.xyz_m}
-    n = len(data["q"])
-    if (data["q"].shape != (n, n_joints) or data["uvz_mm"].shape != (n, 3)
-            or data["xyz_m"].shape != (n, 3) or len(data["kind"]) != n or n == 0):
+    n = len(rec.q)
+    if (rec.q.shape != (n, n_joints) or rec.uvz_mm.shape != (n, 3)
+            or rec.xyz_m.shape != (n, 3) or len(rec.kind) != n or n == 0):
         raise TattotronixError(f"{src} does not hold a solved path for {n_joints} joints; "
                                "re-run the 'ik' stage")
-    return data
+    return rec
 
 
 def main(cfg: Config, out: Outputs) -> None:
@@ -62,7 +63,7 @@ def main(cfg: Config, out: Outputs) -> None:
                                 "dls_lambda": ikc.dls_lambda, "max_iter": ikc.max_iter,
                                 "tol": ikc.tol}
     # the panel origin the toolpath stage used: xyz_m = origin + uvz_mm / 1000
-    origin_m = np.median(ik["xyz_m"] - ik["uvz_mm"] / 1000.0, axis=0)
+    origin_m = np.median(ik.xyz_m - ik.uvz_mm / 1000.0, axis=0)
     times: dict[str, float] = {}
 
     t = time.perf_counter()
@@ -71,7 +72,7 @@ def main(cfg: Config, out: Outputs) -> None:
     times["zero_pose_s"] = time.perf_counter() - t
 
     t = time.perf_counter()
-    pc = study.path_conditioning(chain, ik["q"], ik["uvz_mm"])
+    pc = study.path_conditioning(chain, ik.q, ik.uvz_mm)
     times["path_conditioning_s"] = time.perf_counter() - t
 
     t = time.perf_counter()
@@ -88,7 +89,7 @@ def main(cfg: Config, out: Outputs) -> None:
                  p.r_max_mm, p.sigma5_min, p.cond_max, p.converged_pct, p.solve_s)
 
     t = time.perf_counter()
-    sweep = study.placement_sweep(chain, ik["uvz_mm"], ik["kind"],
+    sweep = study.placement_sweep(chain, ik.uvz_mm, ik.kind,
                                   list(sc.placement_widths_mm), list(sc.placement_offsets_mm),
                                   origin_m=origin_m,
                                   anchor_spacing_m=ikc.anchor_spacing_m, progress=row_done,
@@ -102,9 +103,9 @@ def main(cfg: Config, out: Outputs) -> None:
     t = time.perf_counter()
     fig_dir = out.path("figures", name)
     panel_mm = [float(v) * 1000.0 for v in desc.panel_size]
-    study.manipulability_figure(pc, ik["kind"], panel_mm,
+    study.manipulability_figure(pc, ik.kind, panel_mm,
                                 out.tmp_path(fig_dir / "manipulability.png"), name)
-    study.reachability_figure(reach, ik["uvz_mm"], ik["kind"], panel_mm,
+    study.reachability_figure(reach, ik.uvz_mm, ik.kind, panel_mm,
                               out.tmp_path(fig_dir / "reachability.png"), name)
     study.workspace_figure(ws, desc, out.tmp_path(fig_dir / "workspace.png"), reach)
     study.placement_figure(sweep, out.tmp_path(fig_dir / "placement.png"), reach, chain, name)
@@ -125,8 +126,8 @@ def main(cfg: Config, out: Outputs) -> None:
     out.write_timings("kinematics", name, times)
     s = pc.summary()
     log.info("kinematics %s: %d points, sigma5 %.5f .. %.5f, cond %.2f .. %.2f, worst at "
-             "(%.2f, %.2f) mm", name, s["points"], *s["sigma5"], *s["cond"],
-             *s["worst_point_mm"][:2])
+             "(%.2f, %.2f) mm", name, s["points"], *json_floats(s["sigma5"]),
+             *json_floats(s["cond"]), *json_floats(s["worst_point_mm"])[:2])
 
 
 if __name__ == "__main__":

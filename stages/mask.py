@@ -17,13 +17,13 @@ import logging
 import numpy as np
 from PIL import Image
 
+from tattotronix.app.pipeline import check_reach
 from tattotronix.art.artwork import artwork_grid, artwork_name, check_same_source
 from tattotronix.art.mask import mask_on_panel
 from tattotronix.config.schema import Config
 from tattotronix.errors import TattotronixError
 from tattotronix.io.artifacts import make_provenance
 from tattotronix.io.outputs import Outputs
-from tattotronix.pipeline import check_reach
 from tattotronix.stage import run_stage
 
 log = logging.getLogger("tattotronix.stages.mask")

@@ -13,6 +13,7 @@ from __future__ import annotations
 import logging
 
 from tattotronix.config.schema import Config
+from tattotronix.io.jsontypes import json_number, json_object
 from tattotronix.io.outputs import Outputs
 from tattotronix.robot.mass import (
     INERTIALS_FILE,
@@ -67,13 +68,13 @@ def main(cfg: Config, out: Outputs) -> None:
     report["inertia_problems"] = {
         link: probs for link, p in table.items() if (probs := inertia_problems(p.inertia))
     }
-    t = report["totals"]
+    t = json_object(report["totals"])
     log.info(
         "mass (%s): arm %.4f kg, moving %.4f kg incl. pen, servos %.1f %%",
-        report["source"].split(" ")[0],
-        t["arm_kg"],
-        t["moving_kg"],
-        t["servos_share_pct"],
+        str(report["source"]).split(" ")[0],
+        json_number(t["arm_kg"]),
+        json_number(t["moving_kg"]),
+        json_number(t["servos_share_pct"]),
     )
     out.write_json(out.path("metrics", "mass.json"), report)
 

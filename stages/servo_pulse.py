@@ -20,6 +20,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from tattotronix.errors import TattotronixError
 from tattotronix.hardware.pca9685 import PCA9685, RecordingBus, open_bus
@@ -39,8 +40,8 @@ def recorder(path: Path, joint: str, calib: Calibration) -> Callable[[float, flo
                                f"{', '.join(calib.joint_names)}")
 
     def record(width_us: float, angle_deg: float) -> None:
-        data = (yaml.safe_load(path.read_text()) if path.exists() else None) \
-            or calib.to_mapping()
+        data: Any = (yaml.safe_load(path.read_text()) if path.exists() else None) \
+            or calib.to_mapping()  # Any: YAML's mapping, checked whole below
         points = data["joints"][joint].setdefault("points", [])
         points[:] = [p for p in points if float(p[0]) != round(width_us, 3)]
         points.append([round(width_us, 3), float(angle_deg)])
@@ -86,7 +87,7 @@ def main(argv: list[str]) -> int:
         with PCA9685(bus, calib.address, calib.oscillator_hz) as board:
             board.start(calib.frame_hz)
             hold_pulses(board, channel, own["width_us"], sys.stdin, record=record)
-        if dry:
+        if isinstance(bus, RecordingBus):  # a dry run: what it would have sent
             sys.stdout.write(bus.transcript())
     except TattotronixError as exc:
         print(f"servo_pulse: error: {exc}", file=sys.stderr)

@@ -16,9 +16,8 @@ import tattotronix  # noqa: F401
 # isort: split
 import logging
 
-from omegaconf import DictConfig
-
 from tattotronix.art.artwork import artwork_name
+from tattotronix.config.schema import Config
 from tattotronix.errors import TattotronixError
 from tattotronix.io.outputs import Outputs
 from tattotronix.stage import run_stage
@@ -34,7 +33,7 @@ from tattotronix.studies.registry import (
 log = logging.getLogger("tattotronix.studies")
 
 
-def main(cfg: DictConfig, out: Outputs) -> None:
+def main(cfg: Config, out: Outputs) -> None:
     """Draw the study figures of the configured artwork; write the conclusions."""
     name = artwork_name(cfg.artwork)
     loaded = load_studies(out.data, name)

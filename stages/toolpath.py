@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import logging
 
+import numpy as np
+
 from tattotronix.art.artwork import artwork_name
 from tattotronix.art.stored import stored_artwork
 from tattotronix.config.schema import Config
@@ -35,7 +37,8 @@ log = logging.getLogger("tattotronix.stages.toolpath")
 def main(cfg: Config, out: Outputs) -> None:
     """Plan the toolpath of one artwork's mask; write the path, figure and metrics."""
     name = artwork_name(cfg.artwork)
-    stored = stored_artwork(cfg, out, name)  # refuses a missing or corrupt file by name
+    # refuses a missing or corrupt file by name
+    stored = stored_artwork(out, name, bool(cfg.artwork.vector))
     mask = stored.mask
     params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
     tp = plan_toolpath(mask, params, vector=stored.vector)
@@ -52,7 +55,7 @@ def main(cfg: Config, out: Outputs) -> None:
         stroke=tp.path.stroke,
         t_s=tp.t_s,
         stroke_kind=tp.drawing.kinds[seq],
-        stroke_region=tp.drawing.region_of[seq],
+        stroke_region=tp.drawing.region_of[seq].astype(np.int32),
         stroke_width_mm=tp.drawing.width_mm[seq],
     ).save(out.tmp_path(ToolpathRecord.path(out.root, name=name)),
            make_provenance(cfg, stored.inputs))

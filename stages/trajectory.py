@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import logging
 
+from tattotronix.app.pipeline import straight_travel_baseline, trajectory_from_path
 from tattotronix.art.artwork import artwork_name
 from tattotronix.config.schema import Config
 from tattotronix.io.artifacts import IkRecord, TrajectoryRecord, make_provenance
 from tattotronix.io.outputs import Outputs
-from tattotronix.pipeline import straight_travel_baseline, trajectory_from_path
 from tattotronix.robot.description import build_description
 from tattotronix.stage import run_stage
 from tattotronix.trajectory import JointPath

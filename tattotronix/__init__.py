@@ -9,11 +9,10 @@ at any depth (``lint-imports``, with the contracts in ``pyproject.toml``). Top t
 * ``report``: figures, the animation and the robot report present the results of every layer.
 * ``studies``: design studies, which run the pipeline, the control loop and the servo model.
 * ``app``: the use cases, once each (plan, preview, simulate, predict on the servos, draw on
-  the arm) and the one backend dispatch; the Python API (``tattotronix.plan``) is here.
+  the arm), the one backend dispatch, the pipeline in one process (artwork to trajectory)
+  and the Python API (``tattotronix.plan``).
 * ``hardware``: servo board, program and deploy gate, for drawings control and collision clear.
-* ``control | pipeline``: the joint controller and a timed drawing played closed loop on a
-  plant; artwork to toolpath to IK to trajectory in one process. Neither imports the other:
-  a drawing is planned, then played, by the application above them.
+* ``control``: the joint controller, and a timed drawing played closed loop on a plant.
 * ``plants``: the simulated arms, built from the robot models, that control drives.
 * ``trajectory``: times the IK'd path; its travel moves are checked by collision.
 * ``collision``: the collision model, its pairs and the trajectory check, on the robot.
@@ -39,6 +38,10 @@ import sys
 import threading
 from pathlib import Path
 from types import FrameType
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # the API's names, typed, for a type checker (loaded on first use)
+    from tattotronix.app.api import Arm, Plan, plan, plan_strokes  # noqa: F401
 
 __version__ = "0.1.0"
 

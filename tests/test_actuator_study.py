@@ -288,7 +288,7 @@ def _assert_close(a: Any, b: Any, path: str = "") -> None:
 def stage_runs(tmp_path_factory: pytest.TempPathFactory,
                desc: RobotDescription) -> dict[str, tuple[subprocess.CompletedProcess[str], Path]]:
     """The stage on a small planned drawing, and on an empty data folder, side by side."""
-    from tattotronix.pipeline import plan_drawing
+    from tattotronix.app.pipeline import plan_drawing
 
     base = tmp_path_factory.mktemp("actuator_stage")
     good, empty = base / "good" / "data", base / "empty" / "data"

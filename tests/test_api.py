@@ -71,7 +71,7 @@ def test_readme_example_runs_as_written(tmp_path: Path) -> None:
 def test_plan_is_the_pipelines_plan(tmp_path: Path) -> None:
     """The API's plan and the pipeline's (``draw.py artwork.source=...``) from the same
     file and settings: the same points, times and angles, to the bit."""
-    from tattotronix.pipeline import plan_drawing
+    from tattotronix.app.pipeline import plan_drawing
     from tattotronix.robot.description import build_description
 
     art = small_art(tmp_path / "small.png")

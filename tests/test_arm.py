@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tattotronix.app.arm import state_file_of
 from tattotronix.config.params import compose_settings
 from tattotronix.errors import TattotronixError
 from tattotronix.hardware import (
@@ -28,7 +29,6 @@ from tattotronix.hardware.arm import (
     TEST_HOOK_ENV,
     ArmState,
     ramp,
-    state_file_of,
 )
 from tattotronix.hardware.program import compile_program, count_period_us
 from tattotronix.hardware.pulse import hold_pulses
@@ -516,9 +516,9 @@ def test_the_arm_refuses_a_colliding_drawing_before_the_bus(desc: RobotDescripti
     """draw.py backend=arm checks whatever it is about to play (check_drawing_clear runs
     before the program is compiled or the bus opened): a sweep of the shoulder that folds
     the arm into the bench is refused, naming the pair; a small move near home is not."""
+    from tattotronix.app.arm import check_drawing_clear
     from tattotronix.collision.check import CollisionRefused
     from tattotronix.config.params import compose_settings
-    from tattotronix.hardware.arm import check_drawing_clear
 
     cfg = compose_settings()
     t = np.linspace(0.0, 2.0, 21)

@@ -179,7 +179,7 @@ def test_committed_lock_was_made_by_the_committed_code(clone: Path) -> None:
         f"{s}: {', '.join(sorted(p))}" for s, p in sorted(stamped.items()))
 
 
-@pytest.mark.parametrize("module", ["tattotronix/pipeline.py", "tattotronix/path/order.py",
+@pytest.mark.parametrize("module", ["tattotronix/app/pipeline.py", "tattotronix/path/order.py",
                                     "tattotronix/robot/urdf.py"])
 def test_editing_a_module_makes_exactly_its_importers_stale(clone: Path, module: str) -> None:
     target = clone / module
@@ -209,5 +209,5 @@ def test_editing_a_module_makes_exactly_its_importers_stale(clone: Path, module:
     # pipeline's outputs has other changed deps: data/figures, partly in git)
     assert not {s: p for s, p in _dvc_status(clone).items()
                 if s == CODE_STAGE or any(d.startswith("data/code/") for d in p)}
-    if module == "tattotronix/pipeline.py":
+    if module == "tattotronix/app/pipeline.py":
         assert any(s.startswith("ik@") for s in stale_now)

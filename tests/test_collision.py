@@ -606,7 +606,7 @@ def test_cli_pose_on_the_meshes(cad_dir: Path) -> None:
 @pytest.mark.slow
 @pytest.mark.cad
 def test_small_drawing_is_proven_clear_on_the_meshes(tmp_path: Path, cad_dir: Path) -> None:
-    from tattotronix.pipeline import plan_drawing
+    from tattotronix.app.pipeline import plan_drawing
 
     art = small_art(tmp_path / "small.png")
     cfg = compose_settings([f"artwork.source={art}", "mask.width_mm=24", "mask.min_region_mm2=0.5",
@@ -637,7 +637,7 @@ def test_the_built_in_drawing_is_clear_with_the_meshes(cad_dir: Path) -> None:
     """The emblem, planned in memory with the CAD meshes (planned travel from home and
     back), is collision-free with the margin: every sample and the motion between them.
     Its least clearance is reported, and the proven lower bound lies under it."""
-    from tattotronix.pipeline import plan_drawing
+    from tattotronix.app.pipeline import plan_drawing
 
     cfg = compose_settings([f"robot.cad_dir={cad_dir}"])
     desc = build_description(cfg.robot)

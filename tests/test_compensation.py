@@ -93,7 +93,7 @@ def test_compensation_takes_no_more_needle_entries(name: str) -> None:
     if name == "logo":
         mask, params = logo_mask(), PARAMS
     else:
-        from tattotronix.pipeline import mask_of
+        from tattotronix.app.pipeline import mask_of
 
         over = ["artwork.source=lineart", "mask.res_mm=0.1"] if name == "lineart" else []
         cfg = compose_settings(over)

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from tattotronix.app.pipeline import plan_drawing
 from tattotronix.config.params import compose_settings
 from tattotronix.config.schema import PlantConfig, to_dict
 from tattotronix.control.controller import Controller, Gains, structure_of
@@ -20,7 +21,6 @@ from tattotronix.control.simulate import Loop, Run, simulate, substeps_per_tick
 from tattotronix.control.tracking import busiest_window, entry_times, tracking_errors
 from tattotronix.errors import TattotronixError
 from tattotronix.kinematics import Chain
-from tattotronix.pipeline import plan_drawing
 from tattotronix.plants import BACKENDS, PlantSettings, make_plant
 from tattotronix.robot.description import RobotDescription
 from tattotronix.trajectory import Trajectory
@@ -453,7 +453,7 @@ def test_stored_drawing_is_played_as_is_and_retimed_for_another_speed(
 def test_every_simulated_backend_of_the_config_has_a_plant() -> None:
     """``backend=`` is checked by the config schema; the factory builds each of those
     (all but the real arm, and the servo plant, which plays the servo program rather than
-    torques: tattotronix.hardware.servo_loop), and nothing else."""
+    torques: tattotronix.app.servos), and nothing else."""
     from tattotronix.config.schema import Backend
 
     assert set(BACKENDS) == {b.value for b in Backend} - {"arm", "servo"}

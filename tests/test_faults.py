@@ -240,7 +240,7 @@ def test_the_servo_backend_draws_with_a_servo_type_at_zero_latency(draw_data: Pa
 
 def _trajectory(data: Path, name: str = "small") -> Path:
     """The small drawing's trajectory, planned as the pipeline plans it, stored."""
-    from tattotronix.pipeline import plan_drawing
+    from tattotronix.app.pipeline import plan_drawing
     from tattotronix.robot.description import build_description
 
     cfg = compose_settings(SMALL)
@@ -393,7 +393,7 @@ def test_each_job_of_a_sweep_writes_its_own_folder(tmp_path: Path) -> None:
 
 
 def test_a_toolpath_sweep_keeps_both_jobs(draw_data: Path) -> None:
-    from tattotronix.pipeline import mask_of
+    from tattotronix.app.pipeline import mask_of
 
     mask = mask_of(compose_settings(SMALL), draw_data.parent / "small.png", "small")
     (draw_data / "mask").mkdir()

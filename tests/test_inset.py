@@ -257,8 +257,8 @@ def test_vector_line_art_meets_the_artwork_closer_than_the_masks(
 # --- the emblem, default settings ------------------------------------------------------
 
 def test_the_emblems_planned_ink_meets_the_issues_figures() -> None:
+    from tattotronix.app.pipeline import mask_of
     from tattotronix.config.params import compose_settings
-    from tattotronix.pipeline import mask_of
 
     cfg = compose_settings(["toolpath.compensate=true"])
     mask = mask_of(cfg, None, "emblem")
@@ -348,8 +348,8 @@ def test_a_line_about_the_threshold_width_is_drawn_placed_at_any_angle(
     these lost a part of the line, or stopped short of its end."""
     from PIL import Image, ImageDraw
 
+    from tattotronix.app.pipeline import drawing_inputs
     from tattotronix.config.params import compose_settings
-    from tattotronix.pipeline import drawing_inputs
 
     png = tmp_path / "line.png"
     image = Image.new("L", (400, 100), 255)

@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
+from tattotronix.app.pipeline import drawing_inputs, mask_of, plan_drawing
 from tattotronix.art.grid import InkMask
 from tattotronix.art.mask import make_mask
 from tattotronix.art.place import ANCHOR_SIDES, Placement, ink_extent_mm
 from tattotronix.config.params import compose_settings
 from tattotronix.config.schema import Anchor
 from tattotronix.errors import TattotronixError
-from tattotronix.pipeline import drawing_inputs, mask_of, plan_drawing
 from tattotronix.robot.description import RobotDescription
 
 from .conftest import PYTHON, ROOT, small_art, stage_env

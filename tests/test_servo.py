@@ -16,12 +16,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from tattotronix.app.drawings import resolve_drawing
+from tattotronix.app.servos import run_servo_loop
+from tattotronix.app.simulate import run_closed_loop
 from tattotronix.config.params import compose_settings
 from tattotronix.config.schema import Config
-from tattotronix.control.drawing import ClosedLoop, Drawing, run_closed_loop, score_ink
+from tattotronix.control.drawing import ClosedLoop, Drawing, score_ink
 from tattotronix.control.ink import compare_ink
 from tattotronix.errors import TattotronixError
-from tattotronix.hardware.servo_loop import run_servo_loop
 from tattotronix.hardware.servo_model import joint_servos, measure_fit
 from tattotronix.hardware.servos import (
     Calibration,
@@ -46,6 +47,11 @@ Q0 = np.array([0.0, 0.3, -0.6, 0.0, 0.3])
 
 #: a short stretch of the emblem that marks (s)
 WINDOW = [100.0, 20.0]
+
+
+def _score(cfg: Config, tip: np.ndarray, tip_ref: np.ndarray) -> tuple[object, ...]:
+    return score_ink(tip, tip_ref, cfg.toolpath.panel_origin, float(cfg.draw.ink_res_mm),
+                     float(cfg.toolpath.needle_width_mm))
 
 
 def _only(name: str | None) -> list[str]:
@@ -338,13 +344,13 @@ def test_the_ideal_servo_draws_the_mujoco_plants_ink(desc: RobotDescription, emb
     tip_mj, tip_ref = _tips(chain, mj)
     tip_sv, _ = _tips(chain, sv)
     needle = float(cfg_sv.toolpath.needle_width_mm)
-    grid, ink_sv, ink_mj, ink = score_ink(cfg_sv, tip_sv, tip_mj)
+    grid, ink_sv, ink_mj, ink = _score(cfg_sv, tip_sv, tip_mj)
     assert ink == compare_ink(ink_sv, ink_mj, grid.res_mm)
     assert ink.sim_px > 1000 and ink.plan_px > 1000  # the window marks
     assert ink.max_dev_mm <= needle
     # and each against the plan
-    assert score_ink(cfg_sv, tip_sv, tip_ref)[3].max_dev_mm <= needle
-    assert score_ink(cfg_mj, tip_mj, tip_ref)[3].max_dev_mm <= needle
+    assert _score(cfg_sv, tip_sv, tip_ref)[3].max_dev_mm <= needle
+    assert _score(cfg_mj, tip_mj, tip_ref)[3].max_dev_mm <= needle
 
 
 @pytest.mark.parametrize("imperfection, correction", [

@@ -52,13 +52,13 @@ def _load(svg: Path, width_mm: float | None = None, min_line_px: float = MASK.mi
 def _line_shares(svg: Path, *overrides: str) -> tuple[float, np.ndarray]:
     """Plan the SVG at the defaults (plus ``overrides``): the grid pitch, and each stroked
     line's share of its length the needle passes along."""
+    from tattotronix.app.pipeline import mask_of
     from tattotronix.art.artwork import read_svg, svg_intrinsic_size
     from tattotronix.art.vector import svg_lines
     from tattotronix.config.params import compose_settings
     from tattotronix.path.linecover import line_coverage
     from tattotronix.path.params import ToolpathParams
     from tattotronix.path.plan import plan_toolpath
-    from tattotronix.pipeline import mask_of
 
     cfg = compose_settings([f"artwork.source={svg}", *overrides])
     mask = mask_of(cfg, svg, "waves")
@@ -152,8 +152,8 @@ def test_strokes_over_half_a_transparent_canvas_are_the_ink_not_the_gaps(tmp_pat
     as light art on a dark field is: the mask drew the gaps between the strokes, and the
     vector lines (the strokes) measured as bleed. A transparent canvas is never inverted;
     an opaque dark field still is."""
+    from tattotronix.app.pipeline import mask_of
     from tattotronix.config.params import compose_settings
-    from tattotronix.pipeline import mask_of
 
     def bars(width: float) -> str:
         return "".join(f'<rect x="{x}" y="2" width="{width}" height="36"/>'

@@ -74,8 +74,14 @@ def params() -> TrajectoryParams:
     jerk or tip limit): these tests are about the discrete time-optimal law along the
     whole path (planned travel and the default limits are tested in test_travel.py, the
     jerk and tip limits in test_timelaw_props.py)."""
-    return replace(TrajectoryParams.from_config(compose_settings()), travel="straight",
+    return replace(_default_params(), travel="straight",
                    jerk_rad_s3=None, tip_accel_m_s2=None)
+
+
+def _default_params() -> TrajectoryParams:
+    """The trajectory settings of ``conf/``."""
+    cfg = compose_settings()
+    return TrajectoryParams.from_settings(cfg.trajectory, cfg.toolpath, cfg.speed)
 
 
 def _limits(desc: RobotDescription, params: TrajectoryParams) -> JointLimits:
@@ -495,7 +501,7 @@ def test_the_tip_comes_to_rest_where_it_turns_back_while_marking(
     on = np.ones(len(u) - 1, bool)
     assert cusp_points(path.tcp, on).tolist() == [turn]  # the turn into the drag is not one
     assert cusp_points(path.tcp, ~on).size == 0  # only while marking
-    params = replace(TrajectoryParams.from_config(compose_settings()), travel="straight")
+    params = replace(_default_params(), travel="straight")
     assert params.jerk_rad_s3 is not None  # the default law: jerk-limited
     traj = plan_trajectory(path, chain, _limits(desc, params), params)
     tip_speed = np.linalg.norm(np.gradient(traj.tcp, traj.t, axis=0), axis=1)

@@ -27,11 +27,11 @@ import pytest
 from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
+from tattotronix.app.pipeline import ik_settings, plan_drawing, travel_planner
 from tattotronix.collision.model import CollisionModel
 from tattotronix.config.params import compose_settings
 from tattotronix.errors import TattotronixError
 from tattotronix.kinematics import Chain, solve_path
-from tattotronix.pipeline import ik_settings, plan_drawing, travel_planner
 from tattotronix.robot.description import RobotDescription, build_description
 from tattotronix.trajectory import (
     JointLimits,
@@ -366,7 +366,7 @@ def test_straight_travel_marks_the_same(planned: Trajectory, straight: Trajector
 
 def test_planned_travel_needs_a_planner(chain: Chain, desc: RobotDescription) -> None:
     cfg = compose_settings()
-    params = TrajectoryParams.from_config(cfg)
+    params = TrajectoryParams.from_settings(cfg.trajectory, cfg.toolpath, cfg.speed)
     assert params.travel == "planned"
     q = np.array([_ik(chain, cfg, [0.20, 0.0, 0.013]), _ik(chain, cfg, [0.22, 0.0, 0.013])])
     tcp, _ = chain.fk(q)
@@ -388,7 +388,7 @@ def test_way_home_never_lowers_the_pen(geometry: str, request: pytest.FixtureReq
     cfg = compose_settings(overrides)
     desc = build_description(cfg.robot)
     chain = Chain.from_description(desc)
-    params = TrajectoryParams.from_config(cfg)
+    params = TrajectoryParams.from_settings(cfg.trajectory, cfg.toolpath, cfg.speed)
     limits = JointLimits.from_description(desc, params.accel_rad_s2)
     planner = travel_planner(cfg, desc, chain, limits)
     model = planner.collision

@@ -345,10 +345,10 @@ def test_a_line_the_mask_drops_is_not_drawn_beside_the_ink_it_nearly_touches(
     0.15 mm from a kept shape: its band touched the shape, so the whole line was drawn
     off the artwork (a 10,000-line SVG: bleed up to 2.15 mm). Now a vector line is drawn
     only where the mask keeps ink, as the mask route draws it: this one not at all."""
+    from tattotronix.app.pipeline import drawing_inputs
     from tattotronix.config.params import compose_settings
     from tattotronix.path.params import ToolpathParams
     from tattotronix.path.plan import plan_toolpath
-    from tattotronix.pipeline import drawing_inputs
 
     svg = tmp_path / "near.svg"
     svg.write_text('<svg xmlns="http://www.w3.org/2000/svg" width="30mm" height="20mm" '

@@ -15,12 +15,14 @@ import numpy as np
 import pytest
 
 from tattotronix.app.drawings import resolve_drawing, score_and_write
+from tattotronix.app.servos import run_servo_loop
+from tattotronix.app.simulate import run_closed_loop
 from tattotronix.config.params import compose_settings
-from tattotronix.control.drawing import Drawing, run_closed_loop
+from tattotronix.config.schema import Config
+from tattotronix.control.drawing import Drawing
 from tattotronix.control.ink import compare_ink
 from tattotronix.control.tracking import ERROR_KEYS, tracking_errors
 from tattotronix.control.verdict import VERDICTS, Tolerance, judge, length_text
-from tattotronix.hardware.servo_loop import run_servo_loop
 from tattotronix.io.outputs import Outputs
 from tattotronix.robot.description import RobotDescription
 from tattotronix.robot.mjcf import to_mjcf
@@ -37,9 +39,9 @@ TOL = Tolerance(0.5, 0.3)
 # --- the rule ----------------------------------------------------------------------------
 
 def test_the_tolerance_is_a_stated_fraction_of_the_needle_width() -> None:
-    assert Tolerance.from_config(compose_settings()).um == pytest.approx(150.0)
+    assert _tolerance(compose_settings()).um == pytest.approx(150.0)
     cfg = compose_settings(["draw.tolerance_needle_widths=1", "toolpath.needle_width_mm=0.5"])
-    tol = Tolerance.from_config(cfg)
+    tol = _tolerance(cfg)
     assert tol.um == pytest.approx(500.0)
     assert tol.text() == "500 um (draw.tolerance_needle_widths=1 of the 0.5 mm needle)"
 
@@ -66,6 +68,10 @@ def test_ok_only_within_the_tolerance_and_never_saturated_or_diverged(
     m = j.metrics()
     assert m["verdict"] == verdict and m["tolerance_um"] == pytest.approx(150.0)
     assert (j.warning("art on mujoco") == "") == (verdict == "ok")
+
+
+def _tolerance(cfg: Config) -> Tolerance:
+    return Tolerance.from_settings(cfg.draw, cfg.toolpath)
 
 
 def test_an_out_of_tolerance_servo_run_warns_that_the_real_arm_will_miss() -> None:

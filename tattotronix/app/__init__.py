@@ -5,8 +5,11 @@
 * :mod:`~tattotronix.app.draw`: ``draw.py``, and the one place a backend is chosen
   (:func:`~tattotronix.app.draw.play`: the simulated plants, the servo plant, the arm);
 * :mod:`~tattotronix.app.drawings`: which drawing to play (stored, re-timed or planned
-  here) and what a run writes (its metrics, ink images and log).
+  here) and what a run writes (its metrics, ink images and log);
+* :mod:`~tattotronix.app.pipeline`: artwork to toolpath to IK to trajectory in one process,
+  with the stages' settings (the stages run the same calls one file at a time).
 
-It sits above the domain layers (``hardware``, ``control``, ``plants``, ``pipeline`` and
-below) and under the studies and the stages, which call it.
+It sits above the domain layers (``hardware``, ``control``, ``plants`` and below) and
+under the studies and the stages, which call it. The domain layers take their own
+settings, not the root ``Config`` (``tests/test_layers.py`` holds the few that still do).
 """

@@ -21,6 +21,7 @@ folder unless given), laid out as ``runs/`` is by hand (README, "Hand runs").
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 import tempfile
@@ -32,9 +33,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.app.draw import play
+from tattotronix.app.pipeline import plan_drawing_all
 from tattotronix.art.artwork import artwork_name, resolve_source
 from tattotronix.art.grid import InkMask
-from tattotronix.config.params import compose_settings, with_overrides
+from tattotronix.config.params import CONF_DIR, compose_settings, with_overrides
 from tattotronix.config.schema import Config
 from tattotronix.control.drawing import Drawing
 from tattotronix.errors import TattotronixError
@@ -43,13 +45,12 @@ from tattotronix.io.jsontypes import JsonDict
 from tattotronix.io.outputs import Outputs
 from tattotronix.path.figure import toolpath_figure
 from tattotronix.path.plan import Toolpath
-from tattotronix.pipeline import plan_drawing_all
 from tattotronix.robot.description import RobotDescription, build_description
 from tattotronix.robot.mjcf import to_mjcf
 from tattotronix.robot.urdf import to_urdf
 from tattotronix.trajectory import JointPath, Trajectory
 
-__all__ = ["Arm", "Plan", "plan", "plan_strokes", "strokes_svg"]
+__all__ = ["Arm", "Plan", "plan", "plan_strokes", "settings_of", "strokes_svg"]
 
 log = logging.getLogger("tattotronix.api")
 Array = NDArray[np.float64]
@@ -114,27 +115,31 @@ class Plan:
     # ------------------------------------------------------------------ figures
     @property
     def stats(self) -> JsonDict:
-        """The plan's figures: ``entries``, ``drags``, ``marked_mm``, ``travel_mm``,
-        ``duration_s``, ``cycle_over_marking``, ``bleed_max_mm``, ``bleed_share`` and
-        ``coverage`` (the planned ink against the artwork, at the needle's width)."""
+        """The plan's figures (:meth:`figures`), computed once."""
         if self._stats is None:
-            m, tr = self.toolpath.metrics, self.trajectory
-            needle = float(self.cfg.toolpath.needle_width_mm)
-            fid = self.toolpath.ink(self.mask, needle,
-                                    float(self.cfg.toolpath.ink_res_mm)).fidelity
-            self._stats = {
-                "name": self.name, "entries": int(m.entries), "drags": int(m.drags),
-                "marked_mm": round(float(m.marked_mm), 3),
-                "travel_mm": round(float(m.travel_mm), 3),
-                "points": int(len(tr.t)),
-                "duration_s": round(float(tr.duration_s), 3),
-                "cycle_over_marking": round(tr.duration_s / tr.marking_only_s, 4)
-                if tr.marking_only_s > 0 else None,
-                "bleed_max_mm": round(float(fid.bleed_max_mm), 4),
-                "bleed_share": round(float(fid.bleed_share), 5),
-                "coverage": round(float(fid.coverage), 5),
-            }
+            self._stats = self.figures()
         return dict(self._stats)
+
+    def figures(self) -> JsonDict:
+        """``entries``, ``drags``, ``marked_mm``, ``travel_mm``, ``points``,
+        ``duration_s``, ``cycle_over_marking``, and the planned ink against the artwork at
+        the needle's width (``toolpath.ink_res_mm``): ``bleed_max_mm``, ``bleed_share``
+        and ``coverage``."""
+        m, tr = self.toolpath.metrics, self.trajectory
+        needle = float(self.cfg.toolpath.needle_width_mm)
+        fid = self.toolpath.ink(self.mask, needle, float(self.cfg.toolpath.ink_res_mm)).fidelity
+        return {
+            "name": self.name, "entries": int(m.entries), "drags": int(m.drags),
+            "marked_mm": round(float(m.marked_mm), 3),
+            "travel_mm": round(float(m.travel_mm), 3),
+            "points": int(len(tr.t)),
+            "duration_s": round(float(tr.duration_s), 3),
+            "cycle_over_marking": round(tr.duration_s / tr.marking_only_s, 4)
+            if tr.marking_only_s > 0 else None,
+            "bleed_max_mm": round(float(fid.bleed_max_mm), 4),
+            "bleed_share": round(float(fid.bleed_share), 5),
+            "coverage": round(float(fid.coverage), 5),
+        }
 
     def preview(self, path: str | Path) -> Path:
         """Draw the toolpath on the panel (marking by kind, travel, needle entries) to a
@@ -246,7 +251,33 @@ def _settings(source: str | Path, name: str | None, keywords: dict[str, object],
         if value is not None:
             text = str(value).lower() if isinstance(value, bool) else str(value)
             items.append(f"{_KEYWORDS[key]}={text}")
-    return compose_settings([*items, *overrides])
+    return settings_of([*items, *overrides])
+
+
+@functools.lru_cache(maxsize=1)
+def _defaults() -> Config:
+    """``conf/`` composed once per process (Hydra's compose takes about a second)."""
+    return compose_settings()
+
+
+def settings_of(overrides: Sequence[str]) -> Config:
+    """``conf/`` plus ``overrides``, as a stage composes them: dotted ``key=value``
+    settings on the defaults composed once (milliseconds; checked as a stage checks
+    them), and Hydra's compose for anything else (a config group, ``+key``, ``~key``).
+
+    Raises:
+        ConfigError: an unknown key, or a value of the wrong type or out of range.
+    """
+    items = list(overrides)
+    if any(_needs_hydra(item) for item in items):
+        return compose_settings(items)
+    return with_overrides(_defaults(), items)
+
+
+def _needs_hydra(item: str) -> bool:
+    key = item.partition("=")[0]
+    return (key.startswith(("+", "~")) or "/" in key or "=" not in item
+            or (CONF_DIR / key).is_dir())
 
 
 def plan(source: str | Path, *, width_mm: float | None = None, height_mm: float | None = None,
@@ -324,7 +355,7 @@ def plan_strokes(strokes: Sequence[ArrayLike], *, name: str = "strokes",
         TattotronixError: an empty list, a stroke of fewer than two points, a point off
             the panel or out of reach.
     """
-    cfg = compose_settings(list(overrides))
+    cfg = settings_of(overrides)
     size = [float(x) for x in cfg.robot.panel.size_mm[:2]]
     needle = float(cfg.toolpath.needle_width_mm)
     width = needle if width_mm is None else float(width_mm)

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from tattotronix.app.pipeline import mask_of, plan_drawing_on, trajectory_from_path
 from tattotronix.art.artwork import BUILTINS, artwork_name, check_same_source, source_label
 from tattotronix.art.grid import InkMask
 from tattotronix.config.schema import Config, to_dict
@@ -49,7 +50,6 @@ from tattotronix.path.fidelity import (
     line_width,
 )
 from tattotronix.path.inkfigure import artwork_ink_figure, plan_ink_figure
-from tattotronix.pipeline import mask_of, plan_drawing_on, trajectory_from_path
 from tattotronix.robot.description import RobotDescription
 from tattotronix.trajectory import JointPath, load_trajectory
 
@@ -191,7 +191,9 @@ def score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
     mask = _artwork_mask(cfg, out.data, drawing)
     corners = None if mask is None else np.array([[mask.xs[0], mask.ys[0]],
                                                   [mask.xs[-1], mask.ys[-1]]])
-    grid, sim_ink, plan_ink, ink = score_ink(cfg, tip, tip_ref, corners)
+    grid, sim_ink, plan_ink, ink = score_ink(tip, tip_ref, cfg.toolpath.panel_origin,
+                                             float(cfg.draw.ink_res_mm),
+                                             float(cfg.toolpath.needle_width_mm), corners)
     verdict = loop.judge(err)
     unscored = verdict.unscored_ink()  # a run that saturated or diverged: no ink scores
     if unscored:

@@ -8,7 +8,6 @@ from pathlib import Path
 
 from tattotronix.art.grid import InkMask
 from tattotronix.art.vector import VectorLines
-from tattotronix.config.schema import Config
 from tattotronix.io.outputs import Outputs
 
 __all__ = ["StoredArtwork", "stored_artwork"]
@@ -28,17 +27,17 @@ class StoredArtwork:
     inputs: dict[str, Path]
 
 
-def stored_artwork(cfg: Config, out: Outputs, name: str) -> StoredArtwork:
-    """The mask stage's ``data/mask/<name>.npz`` and, with ``artwork.vector``, the artwork
-    stage's ``data/artwork/<name>-lines.npz``.
+def stored_artwork(out: Outputs, name: str, vector: bool) -> StoredArtwork:
+    """The mask stage's ``data/mask/<name>.npz`` and, with ``vector`` (``artwork.vector``),
+    the artwork stage's ``data/artwork/<name>-lines.npz``.
 
     Raises:
         TattotronixError: a file is missing or corrupt (naming it and the stage to run).
     """
     inputs = {"mask": out.require(out.input("mask", f"{name}.npz"), "mask")}
     mask = InkMask.load(inputs["mask"])
-    vector = None
-    if cfg.artwork.vector:  # the SVG's own lines, from the artwork stage
+    lines = None
+    if vector:  # the SVG's own lines, from the artwork stage
         inputs["lines"] = out.require(out.input("artwork", f"{name}-lines.npz"), "artwork")
-        vector = VectorLines.load(inputs["lines"])
-    return StoredArtwork(mask, vector, inputs)
+        lines = VectorLines.load(inputs["lines"])
+    return StoredArtwork(mask, lines, inputs)

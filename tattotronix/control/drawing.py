@@ -1,8 +1,9 @@
 """A timed drawing played closed loop on a simulated plant, and its ink.
 
 * :class:`Drawing`: a timed drawing to play (times, angles, rates, kinds);
-* :func:`run_closed_loop`: play it on the configured plant and controller
-  (:class:`ClosedLoop`: the run, with what set it up; its tracking errors and verdict);
+* :class:`ClosedLoop`: a run of it on a plant, with what set it up; its tracking errors
+  and verdict (the run itself is assembled from the settings by the application:
+  :func:`tattotronix.app.simulate.run_closed_loop`);
 * :func:`score_ink`: the simulated and the planned ink on one grid, compared;
 * :class:`Progress`: a progress bar over simulated seconds.
 
@@ -14,8 +15,8 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass, field, replace
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -23,10 +24,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.art.grid import InkMask
-from tattotronix.config.schema import Config
-from tattotronix.control.analysis import LoopReport, loop_report
-from tattotronix.control.controller import Controller, Gains
-from tattotronix.control.dynamics import Dynamics
+from tattotronix.control.analysis import LoopReport
 from tattotronix.control.ink import (
     InkComparison,
     InkGrid,
@@ -34,18 +32,15 @@ from tattotronix.control.ink import (
     ink_grid,
     rasterise_ink,
 )
-from tattotronix.control.reference import reference_at_ticks, resolve_window
-from tattotronix.control.simulate import Loop, Run, simulate, substeps_per_tick
+from tattotronix.control.simulate import Run
 from tattotronix.control.tracking import TrackingErrors, tracking_errors
 from tattotronix.control.verdict import Judgement, Tolerance, judge
-from tattotronix.errors import StageInputMissing, TattotronixError
+from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.kinematics import Chain
-from tattotronix.plants import PlantSettings, make_plant
-from tattotronix.robot.description import RobotDescription
 
 __all__ = ["MAX_TICKS", "ClosedLoop", "Drawing", "Progress", "check_tick_budget",
-           "finite_json", "run_closed_loop", "score_ink", "warm_up"]
+           "finite_json", "score_ink", "warm_up"]
 
 log = logging.getLogger("tattotronix.draw")
 Array = NDArray[np.float64]
@@ -225,80 +220,6 @@ def check_tick_budget(duration_s: float, rate_hz: float) -> None:
             "drawing (speed, toolpath.feed_mark_mm_s)")
 
 
-def run_closed_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Drawing, *,
-                    window: object = None, plant_dt_s: float | None = None,
-                    progress: bool = False, viewer: bool = False,
-                    loop: Loop = "auto") -> ClosedLoop:
-    """Run ``drawing`` closed loop on the configured backend and controller.
-
-    Args:
-        cfg: the settings (``backend``, ``controller``, ``plant``, ``draw``).
-        data: the data folder (the generated URDF and MJCF).
-        desc: the robot description.
-        drawing: what to play.
-        window: ``None`` (all), ``[start_s, length_s]`` or ``"busiest"``
-            (``study.window_s`` long).
-        plant_dt_s: the plant step, s (default ``plant.dt_s``).
-        progress: show a progress bar.
-        viewer: watch the run where a display exists.
-        loop: which path runs the controller (:func:`~tattotronix.control.simulate.simulate`;
-            ``auto``: the engine wherever it can).
-
-    Raises:
-        TattotronixError: missing models, a bad rate, tuning pose or window.
-    """
-    backend = cfg.backend.name
-    if backend == "servo":
-        raise TattotronixError("the servo plant plays the servo program, not this loop: "
-                               "use tattotronix.hardware.servo_loop.run_servo_loop")
-    urdf = data / "robot" / f"{desc.name}.urdf"
-    mjcf = data / "robot" / f"{desc.name}.xml"
-    for f in (urdf, mjcf):
-        if not f.exists():
-            raise StageInputMissing(f, "robot")
-    start, end = resolve_window(window, drawing.t, drawing.kind, float(cfg.study.window_s))
-    ctl = cfg.controller
-    rate = float(ctl.rate_hz)
-    if not (math.isfinite(rate) and rate > 0):
-        raise TattotronixError(f"controller.rate_hz={rate}: give a positive rate in Hz")
-    check_tick_budget(end - start, rate)
-    ref = reference_at_ticks(drawing.t, drawing.q, drawing.qd, 1.0 / rate, start, end)
-    dyn = Dynamics(urdf, desc.gravity)
-    tune_q = np.asarray(ctl.tune_q if ctl.tune_q is not None else ref.middle_pose(),
-                        dtype=np.float64)
-    if tune_q.shape != (dyn.n,):
-        raise TattotronixError(f"controller.tune_q has {tune_q.size} values: give {dyn.n} "
-                               "joint angles in rad, or null")
-    gains = Gains.tuned_at(dyn, tune_q, float(ctl.wn))
-    effort = np.array([j.effort for j in desc.joints])
-    limit = effort if ctl.torque_limit_nm is None else float(ctl.torque_limit_nm)
-    controller = Controller(dyn, gains, ctl.structure, rate, limit)
-    settings = PlantSettings.from_config(cfg.plant, desc.gravity, desc.tip_frame)
-    if plant_dt_s is not None:
-        settings = replace(settings, dt_s=float(plant_dt_s))
-    sub = substeps_per_tick(controller.period_s, settings.dt_s)
-    analysis = loop_report(dyn.mass_matrix(tune_q), gains.j_eff, gains.wn, rate, sub)
-    sample_every = max(1, round(float(cfg.draw.sample_s) * rate))
-    label = f"{drawing.name} on {backend}"
-    log.info("draw %s: %s drawing, %.1f..%.1f s, %s at wn %g rad/s, %g Hz, plant %g Hz "
-             "(wn T %.3f, sampled boundary %.3f)", label, drawing.origin, start, end,
-             controller.structure.name, gains.wn, rate, 1.0 / settings.dt_s,
-             analysis["wnT"], analysis["sampled_boundary_numeric_wnT"])
-    bar = Progress(ref.duration_s, label, progress)
-    try:
-        with make_plant(backend, settings, urdf=urdf, mjcf=mjcf,
-                        joint_names=desc.joint_names, lower=desc.lower, upper=desc.upper,
-                        viewer=viewer) as plant:
-            run = simulate(plant, controller, ref, sample_every=sample_every,
-                           abort_error_rad=float(cfg.plant.abort_error_rad), progress=bar,
-                           viewer=viewer, loop=loop)
-    finally:
-        bar.close()
-    return ClosedLoop(drawing, run, controller.summary(), analysis, (start, end),
-                      sample_every, backend, settings.dt_s, gains.wn, controller.period_s,
-                      Tolerance.from_config(cfg))
-
-
 def warm_up() -> None:
     """Import what every closed-loop run needs (the engines, the dynamics, python-control
     for the loop analysis): once, before forking workers that each run some."""
@@ -311,18 +232,21 @@ def warm_up() -> None:
     step_overshoot_pct(True)
 
 
-def score_ink(cfg: Config, tip: Array, tip_ref: Array, corners: Array | None = None
+def score_ink(tip: Array, tip_ref: Array, panel_origin_m: Sequence[float], res_mm: float,
+              needle_mm: float, corners: Array | None = None
               ) -> tuple[InkGrid, NDArray[np.bool_], NDArray[np.bool_], InkComparison]:
     """The simulated and the planned ink of a run on one grid, and how they compare.
 
     Args:
-        cfg: the settings (the panel's origin, the needle's width, the ink pixel).
         tip, tip_ref: the simulated and the planned tip at every tick, m.
+        panel_origin_m: the panel's origin in the arm frame (``toolpath.panel_origin``), m.
+        res_mm: the ink pixel (``draw.ink_res_mm``), mm.
+        needle_mm: the needle's width (``toolpath.needle_width_mm``), mm.
         corners: panel points the grid must also cover (the artwork's corners), mm.
     """
-    origin = np.asarray(cfg.toolpath.panel_origin, dtype=np.float64)
-    res = float(cfg.draw.ink_res_mm)
-    needle = float(cfg.toolpath.needle_width_mm)
+    origin = np.asarray(panel_origin_m, dtype=np.float64)
+    res = float(res_mm)
+    needle = float(needle_mm)
     grid = ink_grid([tip, tip_ref], origin, res, cover_mm=corners)
     sim_ink = rasterise_ink(tip, origin, grid, needle)
     plan_ink = rasterise_ink(tip_ref, origin, grid, needle)

@@ -29,7 +29,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
-from tattotronix.config.schema import Config
+from tattotronix.config.schema import DrawConfig, ToolpathConfig
 from tattotronix.io.jsontypes import JsonDict
 
 __all__ = ["VERDICTS", "Judgement", "Tolerance", "Verdict", "judge", "length_text"]
@@ -67,10 +67,10 @@ class Tolerance:
     needle_mm: float
 
     @classmethod
-    def from_config(cls, cfg: Config) -> Tolerance:
-        """The configured tolerance."""
-        return cls(float(cfg.draw.tolerance_needle_widths),
-                   float(cfg.toolpath.needle_width_mm))
+    def from_settings(cls, draw: DrawConfig, toolpath: ToolpathConfig) -> Tolerance:
+        """The configured tolerance: ``draw.tolerance_needle_widths`` of the needle
+        (``toolpath.needle_width_mm``)."""
+        return cls(float(draw.tolerance_needle_widths), float(toolpath.needle_width_mm))
 
     @property
     def um(self) -> float:

@@ -1,7 +1,7 @@
 """``draw.py backend=arm``: stream a servo program to the PCA9685, safely, with resume.
 
 * Nothing reaches the bus before the drawing is proven clear of collisions with the
-  margin (:func:`check_drawing_clear`, the collision stage's check).
+  margin (:func:`tattotronix.app.arm.check_drawing_clear`, the collision stage's check).
 * Nothing is written before the bus is known to work: the board must answer (or the
   recording bus stand in) before a log, the state file or the session lock is touched,
   so a missing device leaves the last run's files as they were. One session at a time:
@@ -53,7 +53,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from types import FrameType
@@ -62,7 +62,7 @@ from typing import IO
 import numpy as np
 from numpy.typing import NDArray
 
-from tattotronix.config.schema import Config, HardwareConfig
+from tattotronix.config.schema import HardwareConfig
 from tattotronix.errors import Interrupted, TattotronixError
 from tattotronix.hardware.pca9685 import PCA9685, BusError, RecordingBus, SMBusLike, open_bus
 from tattotronix.hardware.program import ServoProgram
@@ -70,12 +70,9 @@ from tattotronix.hardware.servos import Calibration, load_calibration
 from tattotronix.io.artifacts import run_label
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.kinematics import Chain, IkOptions, solve_path
-from tattotronix.plants.servo_plant import ServoSpec
-from tattotronix.robot.description import RobotDescription
 
-__all__ = ["DRY_RUN_STATE", "RESUME_MARGIN_S", "TEST_HOOK_ENV", "ArmSession", "ArmState",
-           "Paused", "calibration_from_config", "check_drawing_clear", "ramp",
-           "state_file_of"]
+__all__ = ["DRY_RUN_STATE", "PREVIEW_IMAGE", "RESUME_MARGIN_S", "TEST_HOOK_ENV", "ArmSession",
+           "ArmState", "Paused", "calibration_from_config", "ramp"]
 
 log = logging.getLogger("tattotronix.arm")
 Array = NDArray[np.float64]
@@ -867,67 +864,3 @@ class ArmSession:
                 f"{state.reason}. The state is saved in {self.state_file}: fix the cause, "
                 "then continue with resume=true (it lifts the needle first)")
         return summary
-
-
-def build_program(cfg: Config, desc: RobotDescription, t: Array, q: Array, qd: Array,
-                  calib: Calibration | None = None,
-                  servos: Sequence[ServoSpec] | None = None
-                  ) -> tuple[ServoProgram, Calibration]:
-    """The program of a timed drawing, with the servo corrections ``hardware.compensate``
-    switches on.
-
-    Args:
-        cfg: the settings.
-        desc: the robot description (joint ranges and velocity limits).
-        t, q, qd: the drawing.
-        calib: the calibration (default: from the config).
-        servos: the servos the corrections are sized for (default: as mounted, from the
-            catalogue, :func:`~tattotronix.hardware.servo_model.joint_servos`).
-    """
-    from tattotronix.config.schema import ServoPlantConfig
-    from tattotronix.hardware.program import compile_program
-    from tattotronix.hardware.servo_model import compensate, joint_servos
-
-    if calib is None:
-        calib = calibration_from_config(cfg.hardware, desc.joint_names)
-    comp = cfg.hardware.compensate
-    adjust = None
-    if comp.backlash or comp.deadband:
-        specs = tuple(servos) if servos is not None else joint_servos(
-            cfg.robot, desc.joint_names, calib, ServoPlantConfig())
-
-        def adjust(qf: Array) -> Array:
-            return compensate(qf, specs, comp)
-    program = compile_program(t, q, qd, calib, desc.lower, desc.upper,
-                              [j.velocity for j in desc.joints], adjust)
-    return program, calib
-
-
-def check_drawing_clear(cfg: Config, desc: RobotDescription, t: Array, q: Array) -> None:
-    """Refuse, before anything reaches the bus, a drawing that collides or comes within
-    ``collision.margin_mm`` (samples and the motion between them; the collision stage's
-    check, run here on whatever drawing the arm is about to play).
-
-    Raises:
-        CollisionRefused: naming the time, the pose and the pair.
-    """
-    from tattotronix.collision.check import CollisionRefused, check_trajectory
-    from tattotronix.collision.model import CollisionModel
-
-    rep = check_trajectory(CollisionModel(desc), t, q,
-                           margin_m=cfg.collision.margin_m, plunge_m=cfg.toolpath.plunge_m,
-                           resolution_m=cfg.collision.resolution_m)
-    if not rep.ok:
-        raise CollisionRefused(rep)
-    log.info("arm: the drawing is clear of collisions (least clearance %.2f mm, %s)",
-             rep.min_clearance_m[rep.worst] * 1e3, rep.pair_names[rep.worst])
-
-
-
-def state_file_of(cfg: Config, data: Path, folder: Path) -> Path:
-    """Where a session keeps the arm's last commanded pose: ``hardware.state_file`` under
-    ``paths.data`` for the real arm, the run's own folder on a dry run (whose recording
-    bus moves no arm)."""
-    if cfg.dry_run:
-        return folder / DRY_RUN_STATE
-    return Path(data).joinpath(*Path(str(cfg.hardware.state_file)).parts)

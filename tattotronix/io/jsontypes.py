@@ -12,7 +12,7 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 from typing import TypeAlias
 
-__all__ = ["JsonDict", "JsonValue"]
+__all__ = ["JsonDict", "JsonValue", "json_floats", "json_number", "json_object"]
 
 #: one JSON value (read-only containers: a ``list[float]`` is one)
 JsonValue: TypeAlias = (
@@ -20,3 +20,36 @@ JsonValue: TypeAlias = (
 )
 #: a JSON object: a metrics file, a summary, a report
 JsonDict: TypeAlias = dict[str, JsonValue]
+
+
+def json_number(value: JsonValue) -> float:
+    """A number read back from a JSON value (a metric to print).
+
+    Raises:
+        TypeError: the value is not a number.
+    """
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise TypeError(f"expected a number, got {value!r}")
+    return float(value)
+
+
+def json_floats(value: JsonValue) -> list[float]:
+    """A list of numbers read back from a JSON value.
+
+    Raises:
+        TypeError: the value is not a sequence of numbers.
+    """
+    if isinstance(value, str) or not isinstance(value, Sequence):
+        raise TypeError(f"expected a list of numbers, got {value!r}")
+    return [json_number(v) for v in value]
+
+
+def json_object(value: JsonValue) -> Mapping[str, JsonValue]:
+    """A JSON object read back from a JSON value.
+
+    Raises:
+        TypeError: the value is not an object.
+    """
+    if not isinstance(value, Mapping):
+        raise TypeError(f"expected an object, got {value!r}")
+    return value

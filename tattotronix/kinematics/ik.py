@@ -121,7 +121,7 @@ Progress = Callable[[int, int], None]
 
 class IkOptions(TypedDict, total=False):
     """Solver settings of :func:`solve_path` (besides the targets and the seed), as the
-    ``ik`` config group gives them (``tattotronix.pipeline.ik_settings``)."""
+    ``ik`` config group gives them (``tattotronix.app.pipeline.ik_settings``)."""
 
     needle_axis: ArrayLike
     dls_lambda: float

@@ -26,7 +26,7 @@ states:
   :class:`StudyCase`.
 
 The machinery lives here, once: :meth:`ClosedLoopStudy.compute_case` plays the drawing closed
-loop (:func:`tattotronix.control.drawing.run_closed_loop`, the plant of ``backend``) over
+loop (:func:`tattotronix.app.simulate.run_closed_loop`, the plant of ``backend``) over
 each window, scores it as the original did (docs/original.md, "5.5 Tracking error"), and
 writes ``data/metrics/<study>/<name>/<case>.json`` (settings, drawing figures, the tracking
 metrics of each window, the loop analysis; no wall times, so ``dvc metrics diff`` shows
@@ -64,14 +64,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.app.drawings import resolve_drawing
+from tattotronix.app.servos import run_servo_loop
+from tattotronix.app.simulate import run_closed_loop
 from tattotronix.art.artwork import artwork_name
 from tattotronix.config.params import with_overrides
 from tattotronix.config.schema import Config, StudyConfig
-from tattotronix.control.drawing import ClosedLoop, Drawing, run_closed_loop, warm_up
+from tattotronix.control.drawing import ClosedLoop, Drawing, warm_up
 from tattotronix.control.tracking import entry_times
 from tattotronix.control.verdict import length_text
 from tattotronix.errors import ConfigError, TattotronixError
-from tattotronix.hardware.servo_loop import run_servo_loop
 from tattotronix.io.artifacts import StudySeriesRecord, make_provenance
 from tattotronix.io.jsontypes import JsonDict, JsonValue
 from tattotronix.io.outputs import Outputs

@@ -66,7 +66,7 @@ def chord_error_mm(dense: NDArray[np.float64], step_mm: float) -> float:
 
 def _chord_error(cfg: Config, name: str) -> JsonDict:
     """The resampling's chord error over the drawing's outlines (fill rows are straight)."""
-    from tattotronix.pipeline import mask_of
+    from tattotronix.app.pipeline import mask_of
 
     source = cfg.artwork.source if cfg.artwork.source is not None else name
     mask = mask_of(cfg, source, name)

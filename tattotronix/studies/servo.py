@@ -103,7 +103,9 @@ class ServoStudy(ClosedLoopStudy):
         run = loop.run
         tip, _ = chain.fk(run.q)
         tip_ref, _ = chain.fk(run.ref.q[:len(run.q)])
-        _, sim_ink, plan_ink, ink = score_ink(cfg, tip, tip_ref)
+        _, sim_ink, plan_ink, ink = score_ink(tip, tip_ref, cfg.toolpath.panel_origin,
+                                               float(cfg.draw.ink_res_mm),
+                                               float(cfg.toolpath.needle_width_mm))
         unscored = loop.judge(loop.errors(chain, float(cfg.draw.settle_periods))).unscored_ink()
         if unscored:
             ink = ink.unscored(unscored)

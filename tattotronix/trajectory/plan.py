@@ -41,7 +41,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from tattotronix.config.schema import Config
+from tattotronix.config.schema import ToolpathConfig, TrajectoryConfig
 from tattotronix.errors import TattotronixError
 from tattotronix.io.artifacts import PROVENANCE_KEY, TRAJECTORY, TrajectoryRecord
 from tattotronix.io.jsontypes import JsonDict
@@ -132,16 +132,17 @@ class TrajectoryParams:
     straight_feed_m_s: float
 
     @classmethod
-    def from_config(cls, cfg: Config) -> TrajectoryParams:
-        """From the settings: ``toolpath.feed_mark_mm_s`` (the one marking feed),
-        ``trajectory.*``, root ``speed``; corners below half ``toolpath.pitch_mm``. Every
-        value (and default) comes from there: this class holds none of its own."""
-        tr, tp = cfg.trajectory, cfg.toolpath
+    def from_settings(cls, tr: TrajectoryConfig, tp: ToolpathConfig, speed: float
+                      ) -> TrajectoryParams:
+        """From the settings: ``trajectory.*`` (``tr``), ``toolpath.feed_mark_mm_s`` (the
+        one marking feed, in ``tp``), the root ``speed``; corners below half
+        ``toolpath.pitch_mm``. Every value (and default) comes from there: this class holds
+        none of its own."""
         return cls(
             feed_mark_m_s=tp.feed_mark_m_s,
             travel_feed_m_s=tr.travel_feed_m_s,
             accel_rad_s2=float(tr.accel_rad_s2),
-            speed=float(cfg.speed),
+            speed=float(speed),
             corner_radius_m=tp.pitch_m / 2,
             max_step_m=tr.max_step_m,
             jerk_rad_s3=None if tr.jerk_rad_s3 is None else float(tr.jerk_rad_s3),

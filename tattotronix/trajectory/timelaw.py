@@ -380,15 +380,29 @@ def _box_filter_law(t: Array, s: Array, v: Array, u: Array, window: float
                         np.where(after, cum[-1] + s_end * (tq - t_end), area))
         return pos, vel, area
 
+    def area(tq: Array) -> Array:  # at(tq)[2] alone, the same arithmetic
+        k = np.searchsorted(t, tq, side="right") - 1
+        np.maximum(k, 0, out=k)  # np.clip's, without its per-call checks
+        np.minimum(k, n_pts - 2, out=k)
+        tau = tq - t[k]
+        inside = cum[k] + s[k] * tau + v[k] * tau**2 / 2 + u[k] * tau**3 / 6
+        return np.where(tq < 0.0, s[0] * tq,
+                        np.where(tq > t_end, cum[-1] + s_end * (tq - t_end), inside))
+
     half = window / 2
     # s_f(tau) lies between s(tau - W/2) and s(tau + W/2): each point's time moves by at
-    # most W/2. Bisection to the float's resolution.
+    # most W/2. Bisection to the float's resolution; both ends of every window in one
+    # call, and no step after the one that changes nothing (each repeats it exactly).
     lo, hi = t - half, t + half
     for _ in range(60):
         mid = 0.5 * (lo + hi)
-        below = (at(mid + half)[2] - at(mid - half)[2]) / window < s
-        lo = np.where(below, mid, lo)
-        hi = np.where(below, hi, mid)
+        ends = area(np.concatenate((mid + half, mid - half)))
+        below = (ends[:n_pts] - ends[n_pts:]) / window < s
+        new_lo = np.where(below, mid, lo)
+        new_hi = np.where(below, hi, mid)
+        if not ((new_lo != lo).any() or (new_hi != hi).any()):
+            break
+        lo, hi = new_lo, new_hi
     tf = 0.5 * (lo + hi)
     tf[0], tf[-1] = -half, t_end + half
     pp, vp, _ = at(tf + half)

@@ -34,7 +34,7 @@ __all__ = ["PlannedDrawing", "check_reach", "drawing_inputs", "ik_settings", "ma
            "plan_drawing", "plan_drawing_all", "plan_drawing_on", "solve_ik",
            "straight_travel_baseline", "trajectory_from_path", "travel_planner"]
 
-log = logging.getLogger("tattotronix.pipeline")
+log = logging.getLogger("tattotronix.app.pipeline")
 
 
 def ik_settings(ik: IkConfig) -> IkOptions:
@@ -76,7 +76,7 @@ def travel_planner(cfg: Config, desc: RobotDescription, chain: Chain,
 def trajectory_from_path(cfg: Config, path: JointPath, desc: RobotDescription) -> Trajectory:
     """Time an IK path with the config's feeds, speed, limits and travel planning (the
     trajectory stage)."""
-    params = TrajectoryParams.from_config(cfg)
+    params = TrajectoryParams.from_settings(cfg.trajectory, cfg.toolpath, cfg.speed)
     limits = JointLimits.from_description(desc, params.accel_rad_s2)
     chain = Chain.from_description(desc)
     planner = travel_planner(cfg, desc, chain, limits) if params.travel == "planned" else None
@@ -88,7 +88,8 @@ def straight_travel_baseline(cfg: Config, path: JointPath, desc: RobotDescriptio
                              ) -> dict[str, float]:
     """The same path with the original's straight travel lines, timed by the same law
     (``trajectory.travel=straight``): what planned travel is compared with."""
-    params = replace(TrajectoryParams.from_config(cfg), travel="straight")
+    params = replace(TrajectoryParams.from_settings(cfg.trajectory, cfg.toolpath, cfg.speed),
+                     travel="straight")
     limits = JointLimits.from_description(desc, params.accel_rad_s2)
     traj = _plan_trajectory(path, Chain.from_description(desc), limits, params,
                             ik=ik_settings(cfg.ik))

@@ -8,7 +8,7 @@ Steps:
    (:func:`~tattotronix.hardware.servo_model.joint_servos`: as mounted or ``servo.type``),
    and, with ``hardware.compensate.fit``, each servo measured and fitted first (the
    ``servo_pulse`` procedure, simulated);
-2. the program, as ``deploy`` compiles it (:func:`tattotronix.hardware.arm.build_program`,
+2. the program, as ``deploy`` compiles it (:func:`tattotronix.app.arm.build_program`,
    with the corrections ``hardware.compensate`` switches on);
 3. what each servo turns to every frame: its count's width through the servo's own
    pulse map (``servo.quantise=false``: the exact width; a bus servo: the angle rounded to
@@ -35,13 +35,14 @@ from pathlib import Path
 
 import numpy as np
 
+from tattotronix.app.arm import build_program
 from tattotronix.config.schema import Config
 from tattotronix.control.drawing import ClosedLoop, Drawing, Progress
 from tattotronix.control.reference import reference_at_ticks, resolve_window
 from tattotronix.control.simulate import Run, saturation
 from tattotronix.control.verdict import Tolerance
 from tattotronix.errors import StageInputMissing, TattotronixError
-from tattotronix.hardware.arm import build_program, calibration_from_config
+from tattotronix.hardware.arm import calibration_from_config
 from tattotronix.hardware.program import ServoProgram
 from tattotronix.hardware.servo_model import joint_servos, with_measured_fits
 from tattotronix.hardware.servos import Calibration
@@ -186,7 +187,8 @@ def run_servo_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Dra
     summary = _summary(setup, cfg)
     return ClosedLoop(drawing, run, {**summary, "wn": wn}, None,
                       (t0, t0 + (k - 1) * settings.dt_s), sample_every, "servo",
-                      settings.dt_s, wn, settings.dt_s, Tolerance.from_config(cfg))
+                      settings.dt_s, wn, settings.dt_s,
+                      Tolerance.from_settings(cfg.draw, cfg.toolpath))
 
 
 def _servo_wn(specs: tuple[ServoSpec, ...], lag: bool, ideal_wn: float) -> float:
