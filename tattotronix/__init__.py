@@ -52,9 +52,12 @@ _API = ("Arm", "Plan", "plan", "plan_strokes")
 
 def __getattr__(name: str) -> object:
     if name in _API:
-        from tattotronix.app import api
+        # importlib, not an import statement: a stage's code stamp follows the import
+        # statements of what it runs (tattotronix.io.codegraph), every stage imports this
+        # package, and none uses the API; one that did would import tattotronix.app.api
+        import importlib
 
-        return getattr(api, name)
+        return getattr(importlib.import_module("tattotronix.app.api"), name)
     raise AttributeError(f"module 'tattotronix' has no attribute '{name}'")
 
 

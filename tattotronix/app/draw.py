@@ -24,14 +24,16 @@ from tattotronix.errors import TattotronixError
 from tattotronix.hardware.arm import calibration_from_config
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.io.outputs import Outputs
+from tattotronix.plants import BACKENDS as PLANTS
 from tattotronix.robot.description import RobotDescription, build_description
 
 __all__ = ["BACKENDS", "draw", "play"]
 
 log = logging.getLogger("tattotronix.draw")
 
-#: every backend ``draw.py`` takes: the simulated plants, the servo plant, the real arm
-BACKENDS = ("mujoco", "pybullet", "model", "servo", "arm")
+#: every backend ``draw.py`` takes: the simulated plants (a new plant is added there, in
+#: ``tattotronix.plants.factory``, and nowhere else), the servo plant, the real arm
+BACKENDS = (*PLANTS, "servo", "arm")
 
 
 def draw(cfg: Config, out: Outputs) -> JsonDict:
@@ -78,7 +80,7 @@ def play(cfg: Config, out: Outputs, desc: RobotDescription, drawing: Drawing) ->
                         "in C); running without one")
         loop = run_servo_loop(cfg, out.data, desc, drawing, window=cfg.window,
                               progress=bool(cfg.draw.progress))
-    elif backend in BACKENDS:
+    elif backend in PLANTS:
         loop = run_closed_loop(cfg, out.data, desc, drawing, window=cfg.window,
                                progress=bool(cfg.draw.progress), viewer=bool(cfg.viewer))
     else:
