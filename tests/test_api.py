@@ -149,3 +149,15 @@ def test_import_stays_light() -> None:
     subprocess.run([sys.executable, "-c", code], check=True, cwd=ROOT)
     with pytest.raises(AttributeError):
         tt.no_such_thing  # noqa: B018
+
+
+def test_no_stage_runs_the_api_but_draw() -> None:
+    """Every stage imports the package, and the package offers the API lazily; only the
+    stage that draws runs it (through ``app.draw``), so an edit of the API reruns that
+    stage alone, not all of them (``tattotronix/__init__.py`` imports it via importlib)."""
+    from tattotronix.devtools.codedeps import stage_deps
+
+    users = {s.name for s in stage_deps(ROOT) if "tattotronix/app/api.py" in s.wanted}
+    assert not users, users
+    drawers = {s.name for s in stage_deps(ROOT) if "tattotronix/app/draw.py" in s.wanted}
+    assert drawers == {"simulate"}, drawers

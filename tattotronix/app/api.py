@@ -97,7 +97,7 @@ class Plan:
         toolpath: the planned toolpath (panel mm).
         path: the IK path (joint angles at every point).
         trajectory: the timed trajectory.
-        source: the artwork file, or None (strokes sent in memory are written to one).
+        source: the artwork file (strokes sent in memory are written to one first).
         workdir: where runs write.
     """
 
@@ -215,8 +215,10 @@ class Plan:
 
     def draw(self, arm: Arm | None = None) -> JsonDict:
         """Draw on the arm (a dry run unless ``arm`` says otherwise): the plan is printed,
-        compiled into servo frames and streamed, with pause (SIGTSTP), stop and resume as
-        ``draw.py backend=arm`` has them (docs/hardware.md); the session's summary."""
+        checked clear of collisions, compiled into servo frames and streamed, as
+        ``draw.py backend=arm`` does (README, "The real arm": a signal stops it with the
+        needle lifted and every output off; ``Arm(resume=True)`` continues); the
+        session's summary."""
         return self._play((arm or Arm()).settings())
 
 
@@ -230,14 +232,15 @@ def _window(window: Sequence[float] | str | None) -> list[str]:
 
 def _robot_models(desc: RobotDescription, workdir: Path) -> tuple[Path, Path]:
     """The URDF and MJCF the plants load, under ``workdir/robot/`` (as the robot stage
-    writes them under ``data/robot/``), written once; their paths."""
+    writes them under ``data/robot/``), rewritten when ``desc`` differs; their paths."""
     folder = workdir / "robot"
     folder.mkdir(parents=True, exist_ok=True)
     files = []
-    for suffix, text in ((".urdf", to_urdf), (".xml", to_mjcf)):
+    for suffix, model in ((".urdf", to_urdf), (".xml", to_mjcf)):
         f = folder / f"{desc.name}{suffix}"
-        if not f.exists():
-            f.write_text(text(desc))
+        text = model(desc)
+        if not f.exists() or f.read_text() != text:
+            f.write_text(text)
         files.append(f)
     return files[0], files[1]
 
