@@ -14,6 +14,10 @@ under ``artwork``, the planned ink against the artwork: tattotronix/path/fidelit
 
 from __future__ import annotations
 
+# first: a Ctrl-C while the libraries below import ends in one line (tattotronix/__init__.py)
+import tattotronix  # noqa: F401
+
+# isort: split
 import logging
 
 import numpy as np
