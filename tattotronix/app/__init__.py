@@ -11,5 +11,5 @@
 
 It sits above the domain layers (``hardware``, ``control``, ``plants`` and below) and
 under the studies and the stages, which call it. The domain layers take their own
-settings, not the root ``Config`` (``tests/test_layers.py`` holds the few that still do).
+settings, not the root ``Config`` (``tests/test_layers.py`` holds that none does).
 """

@@ -27,7 +27,7 @@ from tattotronix.io.outputs import Outputs
 from tattotronix.plants import BACKENDS as PLANTS
 from tattotronix.robot.description import RobotDescription, build_description
 
-__all__ = ["BACKENDS", "draw", "play"]
+__all__ = ["BACKENDS", "check_backend", "draw", "play"]
 
 log = logging.getLogger("tattotronix.draw")
 
@@ -43,18 +43,27 @@ def draw(cfg: Config, out: Outputs) -> JsonDict:
     Raises:
         TattotronixError: an unknown backend, or whatever the backend refuses.
     """
-    backend = cfg.backend.name
-    if backend not in BACKENDS:
-        raise TattotronixError(f"unknown backend '{backend}': use one of {', '.join(BACKENDS)}")
+    check_backend(cfg)
     desc = build_description(cfg.robot)
-    if backend == "arm":  # what the arm refuses, it refuses before any planning
-        if cfg.window is not None:
-            raise TattotronixError("window= is for simulated backends; the arm draws the "
-                                   "whole drawing (resume=true continues a stopped one)")
+    if cfg.backend.name == "arm":  # a bad calibration fails before any planning
         calibration_from_config(cfg.hardware, desc.joint_names)
     else:
         check_run_source(cfg, out)
     return play(cfg, out, desc, resolve_drawing(cfg, out.data, desc))
+
+
+def check_backend(cfg: Config) -> None:
+    """Refuse an unknown backend, and a window on the arm (it draws whole drawings).
+
+    Raises:
+        TattotronixError: naming what to give instead.
+    """
+    backend = cfg.backend.name
+    if backend not in BACKENDS:
+        raise TattotronixError(f"unknown backend '{backend}': use one of {', '.join(BACKENDS)}")
+    if backend == "arm" and cfg.window is not None:
+        raise TattotronixError("window= is for simulated backends; the arm draws the "
+                               "whole drawing (resume=true continues a stopped one)")
 
 
 def play(cfg: Config, out: Outputs, desc: RobotDescription, drawing: Drawing) -> JsonDict:
@@ -71,6 +80,7 @@ def play(cfg: Config, out: Outputs, desc: RobotDescription, drawing: Drawing) ->
         The run metrics (also written to ``metrics/runs/<name>-<backend>.json``), or the
         arm's summary.
     """
+    check_backend(cfg)
     backend = cfg.backend.name
     if backend == "arm":
         return play_on_arm(cfg, out, desc, drawing)
@@ -80,9 +90,7 @@ def play(cfg: Config, out: Outputs, desc: RobotDescription, drawing: Drawing) ->
                         "in C); running without one")
         loop = run_servo_loop(cfg, out.data, desc, drawing, window=cfg.window,
                               progress=bool(cfg.draw.progress))
-    elif backend in PLANTS:
+    else:  # one of the plants (check_backend)
         loop = run_closed_loop(cfg, out.data, desc, drawing, window=cfg.window,
                                progress=bool(cfg.draw.progress), viewer=bool(cfg.viewer))
-    else:
-        raise TattotronixError(f"unknown backend '{backend}': use one of {', '.join(BACKENDS)}")
     return score_and_write(cfg, out, loop, desc)
