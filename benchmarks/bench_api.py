@@ -60,7 +60,7 @@ def _steps(source: str, repeat: int) -> list[tuple[str, float]]:
         t = time.perf_counter()
         mask, vector = drawing_inputs(cfg, source, name, desc)
         t = lap("artwork and mask", t)
-        params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
+        params = ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel)
         tp = plan_toolpath(mask, params, vector=vector)
         t = lap("toolpath", t)
         res = solve_ik(chain, tp.xyz_m, tp.path.uvz_mm, cfg.ik)

@@ -196,7 +196,7 @@ def plan_figures(art: Art) -> dict[str, float | int | str | None]:
     tps = {}
     for comp in (False, True):
         c = with_overrides(cfg, [f"toolpath.compensate={str(comp).lower()}"])
-        params = ToolpathParams.from_config(c.toolpath, c.mask, c.robot.panel)
+        params = ToolpathParams.from_settings(c.toolpath, c.mask, c.robot.panel)
         tps[comp] = plan_toolpath(mask, params, vector=vector)
     tp = tps[cfg.toolpath.compensate]
     out["entries"] = tps[True].metrics.entries

@@ -35,7 +35,6 @@ from tattotronix.io.artifacts import TrajectoryRecord
 from tattotronix.kinematics import Chain
 from tattotronix.plants import BACKENDS, PlantSettings, make_plant
 from tattotronix.robot.description import build_description
-from tattotronix.trajectory import load_trajectory
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 
@@ -83,12 +82,12 @@ def bench(repeat: int) -> list[Row]:
     src = TrajectoryRecord.path(DATA, name="emblem")
     if not src.exists():
         return [("whole drawing", float("nan"), "x", f"{src} missing: run dvc repro first")]
-    tr = load_trajectory(src)
+    tr = TrajectoryRecord.load(src)
     dyn = Dynamics(urdf, desc.gravity)
     ref = reference_at_ticks(tr.t, tr.q, tr.qd, 1e-3)
     gains = Gains.tuned_at(dyn, ref.middle_pose(), 160.0)
     chain = Chain.from_description(desc)
-    settings = PlantSettings.from_config(PlantConfig(), desc.gravity, desc.tip_frame)
+    settings = PlantSettings.from_settings(PlantConfig(), desc.gravity, desc.tip_frame)
     reps = max(1, min(repeat, 3))  # each run is the whole ~10 min drawing
     rows: list[Row] = []
     rtf: dict[str, float] = {}

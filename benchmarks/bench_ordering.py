@@ -55,7 +55,7 @@ def lines_svg(n: int, seed: int = 1) -> str:
 def _order(svg: Path, full: bool) -> OrderResult:
     cfg = compose_settings([f"artwork.source={svg}", "artwork.vector=true"])
     mask, vector = drawing_inputs(cfg, svg, svg.stem)
-    params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
+    params = ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel)
     limit = order_mod.TWO_OPT_FULL_WORK
     order_mod.TWO_OPT_FULL_WORK = 10**15 if full else limit
     try:

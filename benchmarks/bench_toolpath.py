@@ -128,7 +128,7 @@ def _rows(what: str, runs: list[dict[str, float]], tp: Toolpath) -> list[Row]:
 
 def bench(repeat: int) -> list[Row]:
     mcfg = MaskConfig()
-    params = ToolpathParams.from_config(ToolpathConfig(), mcfg, PanelConfig())
+    params = ToolpathParams.from_settings(ToolpathConfig(), mcfg, PanelConfig())
     rows: list[Row] = []
     with tempfile.TemporaryDirectory() as tmp:
         logo = Path(tmp) / "logo.svg"

@@ -22,13 +22,12 @@ from typing import Any
 from tattotronix.art.artwork import artwork_name
 from tattotronix.config.schema import Config
 from tattotronix.hardware.arm import calibration_from_config
-from tattotronix.io.artifacts import StudySeriesRecord, TrajectoryRecord, make_provenance
+from tattotronix.io.artifacts import StudySeriesRecord, TrajectoryRecord
 from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain
 from tattotronix.robot.description import build_description
 from tattotronix.stage import run_stage
 from tattotronix.studies import actuator as study
-from tattotronix.trajectory import load_trajectory
 
 log = logging.getLogger("tattotronix.actuator")
 
@@ -41,12 +40,12 @@ def main(cfg: Config, out: Outputs) -> None:
     desc = build_description(cfg.robot)
     chain = Chain.from_description(desc)
     frame_hz = calibration_from_config(cfg.hardware, desc.joint_names).frame_hz
-    res = study.study_from_config(cfg, chain, load_trajectory(src), frame_hz=frame_hz)
+    res = study.study_from_config(cfg, chain, TrajectoryRecord.load(src), frame_hz=frame_hz)
 
     target = StudySeriesRecord.path(out.root, "actuator", name)
     series: dict[str, Any] = study.series_arrays(res)
     StudySeriesRecord(series).save(out.tmp_path(target),
-                                   make_provenance(cfg, {"trajectory": src}))
+                                   out.provenance(cfg, {"trajectory": src}))
     study.figure(res, out.tmp_path(out.path("figures", name, "actuator.png")), name)
     metrics = {"name": name, **study.metrics(res),
                "series_file": target.relative_to(out.root).as_posix()}

@@ -27,7 +27,6 @@ from tattotronix.report.animation import DrawingClip, RenderResult, drawing_clip
 from tattotronix.report.render3d import render_drawing_both, select_gl
 from tattotronix.robot.description import build_description
 from tattotronix.stage import run_stage
-from tattotronix.trajectory import load_trajectory
 
 log = logging.getLogger("tattotronix.animation")
 
@@ -39,7 +38,7 @@ def main(cfg: Config, out: Outputs) -> None:
     gl = select_gl()  # MuJoCo's OpenGL platform: before anything imports mujoco
     name = artwork_name(cfg.artwork)
     desc = build_description(cfg.robot)
-    traj = load_trajectory(out.require(
+    traj = TrajectoryRecord.load(out.require(
         out.input(*TrajectoryRecord.path("", name=name).parts), "trajectory"))
     urdf = out.require(out.input("robot", f"{desc.name}.urdf"), "robot")
     mjcf = out.require(out.input("robot", f"{desc.name}.xml"), "robot")

@@ -17,8 +17,7 @@ import tattotronix  # noqa: F401
 # isort: split
 import logging
 
-from PIL import Image
-
+from tattotronix.app.records import save_artwork
 from tattotronix.art.artwork import artwork_name, check_same_source, load_artwork
 from tattotronix.art.mask import otsu_ink
 from tattotronix.art.vector import VectorLines, artwork_lines
@@ -27,8 +26,6 @@ from tattotronix.io.outputs import Outputs
 from tattotronix.stage import run_stage
 
 log = logging.getLogger("tattotronix.stages.artwork")
-
-MM_PER_INCH = 25.4
 
 
 def main(cfg: Config, out: Outputs) -> None:
@@ -46,14 +43,8 @@ def main(cfg: Config, out: Outputs) -> None:
     ink, _, _ = otsu_ink(art.grey)
     lines = (artwork_lines(cfg.artwork.source, art.shape, art.res_mm, cfg.toolpath.step_mm)
              if cfg.artwork.vector else VectorLines.empty())
-    lines.save(out.tmp_path(out.path("artwork", f"{name}-lines.npz")))
+    png, _ = save_artwork(out, name, art, lines)
     width_mm, height_mm = art.size_mm
-    dpi = MM_PER_INCH / art.res_mm
-
-    png = out.path("artwork", f"{name}.png")
-    Image.fromarray(art.as_uint8(), mode="L").save(
-        out.tmp_path(png), format="PNG", dpi=(dpi, dpi)
-    )
     out.write_json(
         out.path("metrics", "artwork", f"{name}.json"),
         {

@@ -2,7 +2,7 @@
 
 Reads README.md and docs/**/*.md from the project root (the current folder: DVC runs
 stages from there), the metrics files under ``<paths.data>/metrics`` and params.yaml, and
-the exemptions in docs/certify.yaml (see ``tattotronix.report.certify``). Writes
+the exemptions in docs/certify.yaml (see ``tattotronix.devtools.certify``). Writes
 ``<paths.data>/certify.json`` (beside the metrics folder it reads, not in it; git-tracked,
 not a DVC metric: ``dvc metrics show data/certify.json``): the counts (documents, figures,
 traced, exempted, links, sources, failures).
@@ -27,9 +27,9 @@ import os
 from pathlib import Path
 
 from tattotronix.config.schema import Config
+from tattotronix.devtools.certify import EXPERIMENT_ENV, OUTPUT_NAME, certify
 from tattotronix.errors import TattotronixError
 from tattotronix.io.outputs import Outputs
-from tattotronix.report.certify import EXPERIMENT_ENV, OUTPUT_NAME, certify
 from tattotronix.stage import run_stage
 
 log = logging.getLogger("tattotronix.certify")

@@ -28,7 +28,6 @@ from tattotronix.io.provenance import file_sha256
 from tattotronix.report.figures import clearance_figure
 from tattotronix.robot.description import build_description
 from tattotronix.stage import logs_to_stderr, run_stage
-from tattotronix.trajectory import load_trajectory
 
 log = logging.getLogger("tattotronix.collision")
 
@@ -46,7 +45,7 @@ def main(cfg: Config, out: Outputs) -> None:
     name = artwork_name(cfg.artwork)
     src = out.require(out.input(*TrajectoryRecord.path("", name=name).parts),
                       "trajectory")
-    traj = load_trajectory(src)
+    traj = TrajectoryRecord.load(src)
     model = CollisionModel(desc)
     rep = check_trajectory(model, traj.t, traj.q, margin_m=margin,
                            plunge_m=cfg.toolpath.plunge_m,

@@ -17,13 +17,12 @@ from tattotronix.app.arm import build_program
 from tattotronix.art.artwork import artwork_name
 from tattotronix.config.schema import Config
 from tattotronix.hardware.gate import require_checked
-from tattotronix.io.artifacts import ServoProgramRecord, TrajectoryRecord, make_provenance
+from tattotronix.io.artifacts import ServoProgramRecord, TrajectoryRecord
 from tattotronix.io.jsontypes import json_number, json_object
 from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain
 from tattotronix.robot.description import build_description
 from tattotronix.stage import run_stage
-from tattotronix.trajectory import load_trajectory
 
 log = logging.getLogger("tattotronix.deploy")
 
@@ -34,14 +33,14 @@ def main(cfg: Config, out: Outputs) -> None:
     src = out.require(out.input(*TrajectoryRecord.path("", name=name).parts),
                       "trajectory")
     require_checked(out.input("metrics", "collision", f"{name}.json"), src)
-    traj = load_trajectory(src)
+    traj = TrajectoryRecord.load(src)
     desc = build_description(cfg.robot)
     program, calib = build_program(cfg, desc, traj.t, traj.q, traj.qd)
     inputs = {"trajectory": src}
     if cfg.hardware.calibration_file:
         inputs["calibration"] = Path(str(cfg.hardware.calibration_file))
     program.record().save(out.tmp_path(ServoProgramRecord.path(out.root, name=name)),
-                          make_provenance(cfg, inputs))
+                          out.provenance(cfg, inputs))
     m = {"name": name, **program.metrics(calib, Chain.from_description(desc))}
     out.write_json(out.path("metrics", "deploy", f"{name}.json"), m)
     log.info("deploy %s: %d frames, %.2f us a count; quantisation up to %.3f deg, tip %.2f mm "

@@ -27,7 +27,7 @@ def main(cfg: Config, out: Outputs) -> None:
     """Plan every fill style of ``study.fills``; write the figure and the metrics."""
     name = artwork_name(cfg.artwork)
     stored = stored_artwork(out, name, bool(cfg.artwork.vector))
-    params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
+    params = ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel)
     cases = {k: (c.fill_style.name, float(c.fill_angle_deg))
              for k, c in cfg.study.fills.cases.items()}
     result = compare_fill_styles(stored.mask, params, cases,

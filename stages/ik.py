@@ -12,9 +12,10 @@ from __future__ import annotations
 import logging
 
 from tattotronix.app.pipeline import solve_ik
+from tattotronix.app.records import save_ik
 from tattotronix.art.artwork import artwork_name
 from tattotronix.config.schema import Config
-from tattotronix.io.artifacts import IkRecord, ToolpathRecord, make_provenance
+from tattotronix.io.artifacts import ToolpathRecord
 from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain, PinocchioTip, conditioning, verify
 from tattotronix.robot.description import build_description
@@ -46,10 +47,8 @@ def main(cfg: Config, out: Outputs) -> None:
     cond = conditions.summary()
     cond["worst_point_mm"] = [float(v) for v in tpr.uvz_mm[conditions.worst]]
     tcp, _ = chain.fk(res.q)
-    IkRecord(joints=desc.joint_names, q=res.q, tcp=tcp, residual=res.residual,
-             uvz_mm=tpr.uvz_mm, xyz_m=tpr.xyz_m, kind=tpr.kind, stroke=tpr.stroke).save(
-        out.tmp_path(IkRecord.path(out.root, name=name)),
-        make_provenance(cfg, {"toolpath": src, "urdf": urdf}))
+    save_ik(out, cfg, name, desc.joint_names, res.q, tcp, res.residual, tpr,
+            {"toolpath": src, "urdf": urdf})
     metrics = {"name": name, **res.summary(), **cond, **check.summary(),
                "joint_range": {j: [float(res.q[:, i].min()), float(res.q[:, i].max())]
                                for i, j in enumerate(desc.joint_names)}}

@@ -18,11 +18,11 @@ import numpy as np
 from PIL import Image
 
 from tattotronix.app.pipeline import check_reach
+from tattotronix.app.records import save_mask
 from tattotronix.art.artwork import artwork_grid, artwork_name, check_same_source
 from tattotronix.art.mask import mask_on_panel
 from tattotronix.config.schema import Config
 from tattotronix.errors import TattotronixError
-from tattotronix.io.artifacts import make_provenance
 from tattotronix.io.outputs import Outputs
 from tattotronix.stage import run_stage
 
@@ -49,8 +49,7 @@ def main(cfg: Config, out: Outputs) -> None:
     mask, stats = mask_on_panel(grey, grid.res_mm, cfg.mask, cfg.robot.panel.size_mm,
                                 grid.transparent)
     check_reach(cfg, mask)
-    npz = out.path("mask", f"{name}.npz")
-    mask.save(out.tmp_path(npz), make_provenance(cfg, {"artwork": src}))
+    npz = save_mask(out, cfg, name, mask, src)
     preview = out.path("mask", f"{name}.png")
     Image.fromarray(np.where(mask.ink, 0, 255).astype(np.uint8), mode="L").save(
         out.tmp_path(preview), format="PNG"

@@ -20,12 +20,10 @@ import tattotronix  # noqa: F401
 # isort: split
 import logging
 
-import numpy as np
-
+from tattotronix.app.records import save_toolpath
 from tattotronix.art.artwork import artwork_name
 from tattotronix.art.stored import stored_artwork
 from tattotronix.config.schema import Config
-from tattotronix.io.artifacts import ToolpathRecord, make_provenance
 from tattotronix.io.outputs import Outputs
 from tattotronix.path.export import panel_extent_mm, toolpath_svg
 from tattotronix.path.fidelity import missed_message
@@ -44,25 +42,14 @@ def main(cfg: Config, out: Outputs) -> None:
     # refuses a missing or corrupt file by name
     stored = stored_artwork(out, name, bool(cfg.artwork.vector))
     mask = stored.mask
-    params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
+    params = ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel)
     tp = plan_toolpath(mask, params, vector=stored.vector)
     needle = float(cfg.toolpath.needle_width_mm)
     ink = tp.ink(mask, needle, float(cfg.toolpath.ink_res_mm))
     # a needle that cannot draw the artwork is refused before anything is written
     check_needle(tp, mask, needle, float(cfg.toolpath.ink_res_mm), ink.fidelity)
 
-    seq = tp.order.sequence
-    ToolpathRecord(
-        uvz_mm=tp.path.uvz_mm,
-        kind=tp.path.kind,
-        xyz_m=tp.xyz_m,
-        stroke=tp.path.stroke,
-        t_s=tp.t_s,
-        stroke_kind=tp.drawing.kinds[seq],
-        stroke_region=tp.drawing.region_of[seq].astype(np.int32),
-        stroke_width_mm=tp.drawing.width_mm[seq],
-    ).save(out.tmp_path(ToolpathRecord.path(out.root, name=name)),
-           make_provenance(cfg, stored.inputs))
+    save_toolpath(out, cfg, name, tp, stored.inputs)
     out.write_text(out.path("toolpath", f"{name}.svg"),
                    toolpath_svg(tp, needle, panel_extent_mm(params.panel_size_mm), name))
     toolpath_figure(

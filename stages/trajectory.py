@@ -13,9 +13,10 @@ from __future__ import annotations
 import logging
 
 from tattotronix.app.pipeline import straight_travel_baseline, trajectory_from_path
+from tattotronix.app.records import save_trajectory
 from tattotronix.art.artwork import artwork_name
 from tattotronix.config.schema import Config
-from tattotronix.io.artifacts import IkRecord, TrajectoryRecord, make_provenance
+from tattotronix.io.artifacts import IkRecord
 from tattotronix.io.outputs import Outputs
 from tattotronix.robot.description import build_description
 from tattotronix.stage import run_stage
@@ -32,8 +33,7 @@ def main(cfg: Config, out: Outputs) -> None:
     urdf = out.require(out.input("robot", f"{desc.name}.urdf"), "robot")
     path = JointPath.from_npz(src)
     traj = trajectory_from_path(cfg, path, desc)
-    prov = make_provenance(cfg, {"ik": src, "urdf": urdf})
-    traj.save_npz(out.tmp_path(TrajectoryRecord.path(out.root, name=name)), prov)
+    save_trajectory(out, cfg, name, traj, {"ik": src, "urdf": urdf})
     metrics = {"name": name, **traj.metrics()}
     if traj.moves:
         base = straight_travel_baseline(cfg, path, desc)

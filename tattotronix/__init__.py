@@ -4,7 +4,8 @@ The library is layered: a module imports only from its own layer's package and t
 below it, ``a | b`` share a layer and never import each other, and no imports form a cycle
 at any depth (``lint-imports``, with the contracts in ``pyproject.toml``). Top to bottom:
 
-* ``devtools``: tools run on the project (the stages' code deps); nothing imports them.
+* ``devtools``: tools run on the project (the stages' code deps, the certification of the
+  documents' figures, the tables derived from the CAD meshes); nothing below imports them.
 * ``stage``: the runner of ``stages/<name>.py``, above the library it calls; only they import it.
 * ``report``: figures, the animation and the robot report present the results of every layer.
 * ``studies``: design studies, which run the pipeline, the control loop and the servo model.

@@ -59,13 +59,12 @@ from tattotronix import end_import_guard
 from tattotronix.config.dvclock import guard as guard_lock
 from tattotronix.config.params import load_settings, one_line, to_settings
 from tattotronix.config.schema import Config
-from tattotronix.config.tracked import override_keys, stage_names, tracked_params
+from tattotronix.config.tracked import as_stage, stage_names, tracked_params
 from tattotronix.errors import ConfigError, Interrupted, TattotronixError
 from tattotronix.io.outputs import Outputs, write_root
 from tattotronix.io.provenance import (
     fixed_code_version,
     plain_config,
-    recorded_keys,
     stamp_version,
 )
 
@@ -230,7 +229,7 @@ def _run(name: str, body: StageBody) -> None:
         try:
             settings = load_settings(argv, root=Path.cwd())
             params = plain_config(settings)
-            keys = tracked_params(stage, Path.cwd(), params) + override_keys(argv)
+            keys = tracked_params(stage, Path.cwd(), params)
             # never build on a dvc.lock an interrupt cut short (config/dvclock.py)
             guard_lock(Path.cwd(), stage_names(Path.cwd(), params))
         except ConfigError as exc:
@@ -239,7 +238,7 @@ def _run(name: str, body: StageBody) -> None:
         # (config/tracked.py) and its code, the stamp it depends on (devtools/codedeps.py)
         definition = stage.rpartition(":")[2].split("@")[0]
         stamp = Path(settings.paths.data) / "code" / f"{definition}.txt"
-        with recorded_keys(keys), fixed_code_version(stamp_version(stamp)):
+        with as_stage(keys, argv, stamp_version(stamp)):
             _execute(name, body, settings)
         return
 

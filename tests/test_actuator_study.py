@@ -15,7 +15,7 @@ import pytest
 from tattotronix.config.params import compose_settings
 from tattotronix.config.schema import ActuatorOption
 from tattotronix.errors import TattotronixError
-from tattotronix.io.artifacts import StudySeriesRecord, make_provenance
+from tattotronix.io.artifacts import StudySeriesRecord, TrajectoryRecord, make_provenance
 from tattotronix.kinematics import Chain, solve_path
 from tattotronix.kinematics.synthetic import logo_like_strokes, stroke_path
 from tattotronix.robot.description import RobotDescription
@@ -36,7 +36,7 @@ from tattotronix.studies.actuator import (
     tip_sensitivity,
     worst_lateral_mm,
 )
-from tattotronix.trajectory import MARK, TRAVEL, StoredTrajectory, load_trajectory
+from tattotronix.trajectory import MARK, TRAVEL
 
 from .conftest import ROOT, run_side_by_side, small_art
 
@@ -61,16 +61,16 @@ def decl(cfg: Any, chain: Chain) -> Declared:
                     chain.joint_names)
 
 
-def _stored(q: np.ndarray, kind: np.ndarray, joints: tuple[str, ...]) -> StoredTrajectory:
+def _stored(q: np.ndarray, kind: np.ndarray, joints: tuple[str, ...]) -> TrajectoryRecord:
     n = len(q)
     z = np.zeros_like(q)
-    return StoredTrajectory(joints=joints, t=np.arange(n) * 0.025, q=q, qd=z, qdd=z,
+    return TrajectoryRecord(joints=joints, t=np.arange(n) * 0.025, q=q, qd=z, qdd=z,
                             kind=kind.astype(np.int8), marked=kind == MARK,
                             tcp=np.zeros((n, 3)), provenance={})
 
 
 @pytest.fixture(scope="module")
-def traj(chain: Chain) -> StoredTrajectory:
+def traj(chain: Chain) -> TrajectoryRecord:
     """A solved logo-like path (100 mm wide, 1 mm steps) as a stored trajectory."""
     path = stroke_path(logo_like_strokes(width_mm=100.0), step_mm=1.0)
     res = solve_path(chain, path.xyz_m)
@@ -79,7 +79,7 @@ def traj(chain: Chain) -> StoredTrajectory:
 
 
 @pytest.fixture(scope="module")
-def result(cfg: Any, chain: Chain, traj: StoredTrajectory) -> ActuatorStudy:
+def result(cfg: Any, chain: Chain, traj: TrajectoryRecord) -> ActuatorStudy:
     return study_from_config(cfg, chain, traj)
 
 
@@ -125,7 +125,7 @@ def test_the_frame_rate_sets_the_pca9685_step(cfg: Any, chain: Chain) -> None:
      ["'odd'", "joint_9", "joint_1", "joint_5"]),
 ])
 def test_unknown_command_or_joint_is_refused(decl: Declared, chain: Chain,
-                                             traj: StoredTrajectory, option: ActuatorOption,
+                                             traj: TrajectoryRecord, option: ActuatorOption,
                                              words: list[str]) -> None:
     for call in (lambda: rest_error_deg(decl, option),
                  lambda: actuator_study(chain, traj, decl, [option], every=5, line_mm=0.3,
@@ -143,7 +143,7 @@ def test_a_joint_without_a_servo_is_refused(cfg: Any, chain: Chain) -> None:
 
 # --- poses ---------------------------------------------------------------------------------
 
-def test_poses_are_every_nth_marking_point(traj: StoredTrajectory) -> None:
+def test_poses_are_every_nth_marking_point(traj: TrajectoryRecord) -> None:
     p = study_poses(traj, 5)
     marking = np.flatnonzero(traj.kind == MARK)
     np.testing.assert_array_equal(p.index, marking[::5])
@@ -152,7 +152,7 @@ def test_poses_are_every_nth_marking_point(traj: StoredTrajectory) -> None:
     assert len(study_poses(traj, 1).t_s) == len(marking)
 
 
-def test_no_marking_points_is_refused(traj: StoredTrajectory, chain: Chain,
+def test_no_marking_points_is_refused(traj: TrajectoryRecord, chain: Chain,
                                       decl: Declared) -> None:
     empty = dataclasses.replace(traj, kind=np.full_like(traj.kind, TRAVEL))
     with pytest.raises(TattotronixError, match="no marking points"):
@@ -167,7 +167,7 @@ def test_no_marking_points_is_refused(traj: StoredTrajectory, chain: Chain,
 # --- the tip sensitivity and the error bounds ------------------------------------------------
 
 def test_lever_is_the_jacobian_by_finite_differences(chain: Chain,
-                                                     traj: StoredTrajectory) -> None:
+                                                     traj: TrajectoryRecord) -> None:
     q = study_poses(traj, 5).q[::97]
     sens = tip_sensitivity(chain, q)  # (N, 3, n) mm/deg
     assert sens.shape == (len(q), 3, chain.n)
@@ -190,7 +190,7 @@ def test_box_corners() -> None:
                                      for d in (-3, 3)}
 
 
-def test_corner_maximum_bounds_the_box(chain: Chain, traj: StoredTrajectory,
+def test_corner_maximum_bounds_the_box(chain: Chain, traj: TrajectoryRecord,
                                        decl: Declared, cfg: Any) -> None:
     """At a few poses: 4000 random interior points of the box never exceed the corner
     maximum, which is attained at a corner (brute force, pose by pose)."""
@@ -296,7 +296,7 @@ def stage_runs(tmp_path_factory: pytest.TempPathFactory,
     empty.mkdir(parents=True)
     art = small_art(base / "small.png")
     traj = plan_drawing(compose_settings(SMALL), art, "small", desc)
-    traj.save_npz(good / "trajectories" / "small.npz", make_provenance({}, {}, "test"))
+    traj.save(good / "trajectories" / "small.npz", make_provenance({}, {}, "test"))
     return run_side_by_side("actuator", {"good": good, "empty": empty},
                             "artwork.name=small", *SMALL)
 
@@ -316,7 +316,7 @@ def test_stage_writes_metrics_series_and_figure(stage_runs: Any, chain: Chain) -
     assert not [f for f in data.rglob("*") if ".tmp" in f.name]
 
     # regenerated in this process from the same trajectory: equal to 1e-12
-    traj = load_trajectory(data / "trajectories" / "small.npz")
+    traj = TrajectoryRecord.load(data / "trajectories" / "small.npz")
     again = study_from_config(compose_settings(SMALL), chain, traj)
     _assert_close(m, {"name": "small", **metrics(again),
                       "series_file": "studies/actuator/small.npz"})
@@ -348,6 +348,6 @@ def test_committed_metrics_regenerate(cfg: Any, chain: Chain) -> None:
     """The committed data/metrics/actuator/emblem.json is what the study gives on the
     emblem's trajectory, to 1e-12 (run `dvc repro` if this fails after a change)."""
     m = json.loads(EMBLEM_METRICS.read_text())
-    again = study_from_config(cfg, chain, load_trajectory(EMBLEM))
+    again = study_from_config(cfg, chain, TrajectoryRecord.load(EMBLEM))
     _assert_close(m, {"name": "emblem", **metrics(again),
                       "series_file": "studies/actuator/emblem.npz"})

@@ -21,7 +21,8 @@ import pytest
 import tattotronix as tt
 from tattotronix.config.params import compose_settings
 from tattotronix.errors import ConfigError, TattotronixError
-from tests.conftest import ROOT, small_art
+from tests.conftest import PYTHON, ROOT, small_art
+from tests.test_artwork_tracked import MINE_ARGS, Clone
 
 LOGO = """<svg xmlns="http://www.w3.org/2000/svg" width="80mm" height="30mm" viewBox="0 0 80 30">
 <path fill-rule="evenodd" d="M2 2H38V28H2Z M10 9H30V21H10Z"/>
@@ -58,7 +59,7 @@ def test_readme_example_runs_as_written(tmp_path: Path) -> None:
     assert out["arm"] == "done"
     assert out["strokes"]["entries"] == 2
     assert (tmp_path / "preview.png").stat().st_size > 10_000
-    with np.load(tmp_path / "logo.npz", allow_pickle=False) as z:
+    with np.load(tmp_path / "logo" / "trajectories" / "logo.npz", allow_pickle=False) as z:
         assert {"joints", "t", "q", "qd", "qdd", "kind", "marked", "tcp",
                 "provenance"} <= set(z.files)
     work = Path(out["workdir"])
@@ -82,13 +83,36 @@ def test_plan_is_the_pipelines_plan(tmp_path: Path) -> None:
     for key in ("t", "q", "qd", "kind"):
         assert np.array_equal(getattr(d.trajectory, key), getattr(traj, key)), key
     assert d.stats["entries"] == d.toolpath.metrics.entries
-    saved = d.save(tmp_path / "small.npz")
+    saved = d.save(tmp_path / "saved")
+    assert saved == tmp_path / "saved" / "trajectories" / "small.npz"
     with np.load(saved, allow_pickle=False) as z:
         assert np.array_equal(z["q"], traj.q)
         prov = json.loads(str(z["provenance"]))
-    assert set(prov["inputs"]) == {"artwork", "urdf"}
+    assert prov["inputs"]["ik"]["path"] == "ik/small.npz"
+    assert prov["inputs"]["urdf"]["path"] == "robot/tattotronix.urdf"
     png = d.preview(tmp_path / "p" / "preview.png")
     assert png.stat().st_size > 10_000
+
+
+@pytest.mark.slow
+def test_a_saved_plan_is_the_stages_files_byte_for_byte(tmp_path: Path) -> None:
+    """On a clone, ``dvc repro trajectory@mine`` and ``tt.plan(...).save(...)`` of the same
+    file with the same overrides write the same bytes, file by file, from the artwork's
+    raster to the trajectory (each records the same provenance)."""
+    c = Clone(tmp_path)
+    made = c.dvc("repro", "trajectory@mine")
+    assert made.returncode == 0, made.stdout[-3000:] + made.stderr[-3000:]
+    width = MINE_ARGS.split("mask.width_mm=")[1]
+    script = ("import tattotronix as tt\n"
+              f"tt.plan('art/mine.png', width_mm={width}).save('saved')\n")
+    saved = c.run(PYTHON, "-c", script)
+    assert saved.returncode == 0, saved.stderr[-3000:]
+    files = ["artwork/mine.png", "artwork/mine-lines.npz", "mask/mine.npz",
+             "toolpaths/mine.npz", "robot/tattotronix.urdf", "ik/mine.npz",
+             "trajectories/mine.npz"]
+    for f in files:
+        ours, theirs = c.root / "saved" / f, c.root / "data" / f
+        assert ours.read_bytes() == theirs.read_bytes(), f
 
 
 def test_strokes_land_where_sent(tmp_path: Path) -> None:

@@ -24,6 +24,36 @@ ENV = {k: v for k, v in os.environ.items() if not k.startswith("DVC_")}
 # DVC runs `python stages/...`: make that the interpreter running the tests
 ENV["PATH"] = os.pathsep.join([str(Path(PYTHON).parent), ENV.get("PATH", "")])
 
+#: the entry of ``vars: artworks`` a clone gets for ``art/mine.png``
+MINE_ARGS = "artwork.source=art/mine.png mask.width_mm=24"
+
+
+class Clone:
+    """A clone of the committed project with ``art/mine.png`` (:func:`small_art`) drawn as
+    the entry ``mine`` of ``vars: artworks``; runs DVC and Python in it, on its own code."""
+
+    def __init__(self, tmp_path: Path):
+        self.root = tmp_path / "clone"
+        subprocess.run(["git", "clone", "-q", str(ROOT), str(self.root)], check=True)
+        self.env = {**ENV, "PYTHONPATH": str(self.root)}  # the clone runs its own code
+        (self.root / "art").mkdir()
+        self.png = small_art(self.root / "art" / "mine.png")
+        dvc_yaml = self.root / "dvc.yaml"
+        text = dvc_yaml.read_text(encoding="utf-8")
+        entry = ("  - artworks:\n      mine:\n        source: art/mine.png\n"
+                 f"        args: {MINE_ARGS}\n")
+        assert text.count("  - artworks:\n") == 1
+        dvc_yaml.write_text(text.replace("  - artworks:\n", entry), encoding="utf-8")
+
+    def run(self, *argv: str) -> subprocess.CompletedProcess[str]:
+        """``argv`` run in the clone, its output captured."""
+        return subprocess.run(list(argv), cwd=self.root, env=self.env, capture_output=True,
+                              text=True, timeout=900)
+
+    def dvc(self, *argv: str) -> subprocess.CompletedProcess[str]:
+        """``dvc argv`` in the clone."""
+        return self.run(PYTHON, "-m", "dvc", *argv)
+
 
 def _artworks(root: Path) -> dict[str, dict[str, str]]:
     doc = yaml.safe_load((root / "dvc.yaml").read_text(encoding="utf-8"))
@@ -61,23 +91,8 @@ def test_an_edit_to_a_users_artwork_makes_its_stage_stale(tmp_path: Path) -> Non
     """On a clone: one entry in ``vars: artworks`` draws a PNG (``dvc repro artwork@mine``
     runs that stage alone: the committed gates are current), after which ``dvc status``
     calls it up to date; an edit to the PNG makes ``dvc status`` name the file as a changed dep."""
-    clone = tmp_path / "clone"
-    subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True)
-    env = {**ENV, "PYTHONPATH": str(clone)}  # the clone runs its own code
-
-    def dvc(*argv: str) -> subprocess.CompletedProcess[str]:
-        return subprocess.run([PYTHON, "-m", "dvc", *argv], cwd=clone, env=env,
-                              capture_output=True, text=True, timeout=900)
-
-    (clone / "art").mkdir()
-    png = small_art(clone / "art" / "mine.png")
-    dvc_yaml = clone / "dvc.yaml"
-    text = dvc_yaml.read_text(encoding="utf-8")
-    entry = ("  - artworks:\n      mine:\n        source: art/mine.png\n"
-             "        args: artwork.source=art/mine.png mask.width_mm=24\n")
-    assert text.count("  - artworks:\n") == 1
-    dvc_yaml.write_text(text.replace("  - artworks:\n", entry), encoding="utf-8")
-
+    c = Clone(tmp_path)
+    clone, dvc, png = c.root, c.dvc, c.png
     made = dvc("repro", "artwork@mine")
     assert made.returncode == 0, made.stdout[-3000:] + made.stderr[-3000:]
     ran = [line for line in made.stdout.splitlines() if line.startswith("Running stage")]

@@ -264,7 +264,7 @@ def _params(**change: float) -> object:
 
     cfg = compose_settings()
     return dataclasses.replace(
-        ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel), **change)
+        ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel), **change)
 
 
 @pytest.mark.parametrize(("mask", "change", "words"), [

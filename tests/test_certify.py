@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from tattotronix.report.certify import (
+from tattotronix.devtools.certify import (
     EXPERIMENT_ENV,
     OUTPUT_NAME,
     CertifyReport,

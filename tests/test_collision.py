@@ -23,6 +23,7 @@ from tattotronix.collision.check import CollisionRefused, TrajectoryClearance, c
 from tattotronix.collision.model import CollisionModel, parse_pose
 from tattotronix.collision.pairs import body_pairs
 from tattotronix.config.params import compose_settings
+from tattotronix.devtools import tables
 from tattotronix.errors import TattotronixError
 from tattotronix.hardware.gate import require_checked
 from tattotronix.io.provenance import file_sha256
@@ -301,7 +302,7 @@ def test_every_mesh_vertex_lies_inside_its_kdop(cad_dir: Path,
 def test_committed_kdop_table_matches_the_meshes(cad_dir: Path,
                                                  monkeypatch: pytest.MonkeyPatch,
                                                  capsys: pytest.CaptureFixture[str]) -> None:
-    run = subprocess.run([PYTHON, "-m", "tattotronix.collision.shapes", "--cad-dir",
+    run = subprocess.run([PYTHON, "-m", "tattotronix.devtools.tables", "kdops", "--cad-dir",
                           str(cad_dir)], cwd=ROOT, env=stage_env(), text=True,
                          capture_output=True, timeout=120)
     assert run.returncode == 0, run.stdout + run.stderr
@@ -311,7 +312,7 @@ def test_committed_kdop_table_matches_the_meshes(cad_dir: Path,
     stale["wrist_link"] = stale["wrist_link"].copy()
     stale["wrist_link"][17] += 2e-5
     monkeypatch.setattr(shapes, "load_kdops", lambda: stale)
-    assert shapes.main(["--cad-dir", str(cad_dir)]) == 1
+    assert tables.main(["kdops", "--cad-dir", str(cad_dir)]) == 1
     assert "0.0200 mm" in capsys.readouterr().out
 
 

@@ -23,7 +23,7 @@ from tattotronix.path.plan import Toolpath, plan_toolpath
 from tattotronix.path.regions import find_regions
 from tattotronix.path.strokes import StrokeKind
 
-PARAMS = ToolpathParams.from_config(ToolpathConfig(), MaskConfig(), PanelConfig())
+PARAMS = ToolpathParams.from_settings(ToolpathConfig(), MaskConfig(), PanelConfig())
 NEEDLE = PARAMS.needle_width_mm
 FINE = 0.025  # the toolpath stage's ink grid (toolpath.ink_res_mm), mm
 BLEED_MM = 0.05  # the project's goal for the farthest bleed of the planned ink
@@ -98,7 +98,7 @@ def test_compensation_takes_no_more_needle_entries(name: str) -> None:
         over = ["artwork.source=lineart", "mask.res_mm=0.1"] if name == "lineart" else []
         cfg = compose_settings(over)
         mask = mask_of(cfg, cfg.artwork.source, name)
-        params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
+        params = ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel)
     plain, comp = _plans(mask, params)
     assert comp.metrics.entries <= plain.metrics.entries, name
     assert comp.path.drags > 0

@@ -51,7 +51,7 @@ def small_drawing(tmp_path_factory: pytest.TempPathFactory, desc: RobotDescripti
 
 def make(backend: str, models: tuple[Path, Path], desc: RobotDescription, **kw: object):
     plant = replace(PlantConfig(), **kw)  # type: ignore[arg-type]
-    settings = PlantSettings.from_config(plant, desc.gravity, desc.tip_frame)
+    settings = PlantSettings.from_settings(plant, desc.gravity, desc.tip_frame)
     return make_plant(backend, settings, urdf=models[0], mjcf=models[1],
                       joint_names=desc.joint_names, lower=desc.lower, upper=desc.upper)
 
@@ -434,7 +434,7 @@ def test_stored_drawing_is_played_as_is_and_retimed_for_another_speed(
     (tmp_path / "trajectories").mkdir()
     (tmp_path / "ik").mkdir()
     config = to_dict(cfg)
-    small_drawing.save_npz(tmp_path / "trajectories" / "small.npz",
+    small_drawing.save(tmp_path / "trajectories" / "small.npz",
                            provenance_json({str(k): v for k, v in config.items()}, {}, "test"))
     tr = small_drawing
     ik = tr.source >= 0  # the IK path's own points (not densified, not planned travel)

@@ -7,8 +7,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from tattotronix.devtools.certify import extract_figures, load_sources
 from tattotronix.devtools.docfigures import carry_over, written_as
-from tattotronix.report.certify import extract_figures, load_sources
 
 
 def _metrics(root: Path, values: dict[str, float]) -> None:

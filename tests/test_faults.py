@@ -213,7 +213,7 @@ def test_a_servo_type_at_zero_latency_runs_without_a_delay_buffer(models: tuple[
     zero = [i for i, s in enumerate(specs) if s.latency_s == 0]
     late = [i for i, s in enumerate(specs) if s.latency_s > 0]
     assert zero and late  # MG996R on some joints, another type on the rest
-    settings = PlantSettings.from_config(cfg.plant, 0.0, desc.tip_frame)
+    settings = PlantSettings.from_settings(cfg.plant, 0.0, desc.tip_frame)
     q0 = np.array([0.0, 0.3, -0.6, 0.0, 0.3])
     cmd = np.tile(q0, (10, 1))
     cmd[3:] += 0.05
@@ -247,7 +247,7 @@ def _trajectory(data: Path, name: str = "small") -> Path:
     traj = plan_drawing(cfg, data.parent / "small.png", name, build_description(cfg.robot))
     path = TrajectoryRecord.path(data, name=name)
     path.parent.mkdir(parents=True, exist_ok=True)
-    traj.save_npz(path, make_provenance(cfg, {}))
+    traj.save(path, make_provenance(cfg, {}))
     return path
 
 
@@ -283,7 +283,7 @@ def stored(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_every_impossible_trajectory_is_refused_naming_the_file(stored: Path,
                                                                  tmp_path: Path) -> None:
-    from tattotronix.trajectory import load_trajectory
+
 
     good = TrajectoryRecord.load(TrajectoryRecord.path(stored, name="small"))
     n = len(good.t)
@@ -304,7 +304,7 @@ def test_every_impossible_trajectory_is_refused_naming_the_file(stored: Path,
         shutil.copy(TrajectoryRecord.path(stored, name="small"), path)
         _damage(path, **change)
         with pytest.raises(TattotronixError) as err:
-            load_trajectory(path)
+            TrajectoryRecord.load(path)
         msg = str(err.value)
         assert f"cannot read {path} (" in msg and words in msg, (case, msg)
         assert "re-run the 'trajectory' stage" in msg and "\n" not in msg, msg
@@ -538,7 +538,7 @@ def test_the_check_refuses_only_most_of_the_ink_outside() -> None:
     cfg = compose_settings()
     for needle, refused in ((0.3, False), (4.0, False), (6.0, True), (9.0, True)):
         params = dataclasses.replace(
-            ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel),
+            ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel),
             needle_width_mm=needle, compensate=False)
         tp = plan_toolpath(mask, params)
         bleed = tp.ink(mask, needle, 0.025).fidelity.bleed_share
@@ -563,7 +563,7 @@ def test_a_needle_that_leaves_nothing_to_draw_is_named() -> None:
     ink[30:50, 10:190] = True
     cfg = compose_settings()
     params = dataclasses.replace(
-        ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel),
+        ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel),
         needle_width_mm=2.0, compensate=True)
     with pytest.raises(TattotronixError, match=r"^toolpath.needle_width_mm=2 leaves nothing "
                                                r"to draw: no part of the artwork's 1 ink"):

@@ -103,7 +103,7 @@ def test_an_outline_inset_by_half_the_needle_keeps_the_ink_inside(cells: int,
 def test_a_planned_toolpath_reports_outline_and_fill_coverage(compensate: bool) -> None:
     mask = _square(6.0, size_mm=20.0)
     params = dataclasses.replace(
-        ToolpathParams.from_config(ToolpathConfig(), MaskConfig(), PanelConfig()),
+        ToolpathParams.from_settings(ToolpathConfig(), MaskConfig(), PanelConfig()),
         compensate=compensate)
     tp = plan_toolpath(mask, params)
     fill = tp.drawing.is_fill[tp.order.sequence]
@@ -178,7 +178,7 @@ def test_each_fill_style_trades_coverage_for_time() -> None:
     figures = {}
     for style in FillStyle:
         cfg = ToolpathConfig(fill_style=style, fill_angle_deg=30.0, compensate=True)
-        params = ToolpathParams.from_config(cfg, MaskConfig(), PanelConfig())
+        params = ToolpathParams.from_settings(cfg, MaskConfig(), PanelConfig())
         tp = plan_toolpath(mask, params)
         fill = tp.drawing.is_fill[tp.order.sequence]
         ink = planned_ink(mask, tp.path.uvz_mm, tp.path.stroke, fill, NEEDLE, 0.05)

@@ -13,6 +13,7 @@ import pytest
 from PIL import Image
 
 from tattotronix.config.params import compose_settings
+from tattotronix.control import steps as S
 from tattotronix.control.analysis import step_overshoot_pct
 from tattotronix.kinematics import Chain, PinocchioTip, solve_point
 from tattotronix.report import figures as F
@@ -150,7 +151,7 @@ def test_linear_step_of_one_axis_is_the_closed_form_overshoot() -> None:
     j, wn = 0.003, 37.0
     t = np.linspace(0.0, 20.0 / wn, 4001)
     for doe in (False, True):
-        y = F.linear_step([[j]], [3 * j * wn**2], [j * wn**3], [3 * j * wn], doe, t)[0, 0]
+        y = S.linear_step([[j]], [3 * j * wn**2], [j * wn**3], [3 * j * wn], doe, t)[0, 0]
         assert 100.0 * (y.max() - 1.0) == pytest.approx(step_overshoot_pct(doe), abs=0.05)
         assert y[-1] == pytest.approx(1.0, abs=1e-3)
 
@@ -161,14 +162,14 @@ def test_step_set_on_the_model_plant_matches_the_linear_loop(
     linear loop: overshoots within 1 point. Coupling makes them differ from the single
     axis (joint_3 overshoots most)."""
     q0 = [-0.128, 0.69, 0.23, 0.0, 0.65]
-    s = F.step_set(desc, models[0], q0, 20.0, "pid_g", 1000.0, 0.001, 20.0,
+    s = S.step_set(desc, models[0], q0, 20.0, "pid_g", 1000.0, 0.001, 20.0,
                    math.radians(0.5), periods=8.0)
     assert not s.saturated.any()
     np.testing.assert_allclose(s.overshoot_pct, s.linear_overshoot_pct, atol=1.0)
     assert s.single_axis_pct == pytest.approx(24.9, abs=0.05)
     assert int(np.argmax(s.overshoot_pct)) == 2
     assert json.dumps(s.summary())
-    v = F.StepSet(**{**s.__dict__, "structure": "pid_g_v", "wn": 160.0})  # layout only
+    v = S.StepSet(**{**s.__dict__, "structure": "pid_g_v", "wn": 160.0})  # layout only
     F.steps_figure([s, v], tmp_path / "steps.png", NAME)
     _png_size(tmp_path / "steps.png", "steps")
 

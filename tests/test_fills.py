@@ -27,7 +27,7 @@ CASES = {"hatch": ("hatch", 0.0), "hatch-30": ("hatch", 30.0), "cross": ("cross"
 
 
 def _params(**over: object) -> ToolpathParams:
-    params = ToolpathParams.from_config(ToolpathConfig(compensate=True), MaskConfig(),
+    params = ToolpathParams.from_settings(ToolpathConfig(compensate=True), MaskConfig(),
                                         PanelConfig())
     return dataclasses.replace(params, **over)
 

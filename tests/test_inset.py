@@ -35,7 +35,7 @@ from tattotronix.path.params import ToolpathParams
 from tattotronix.path.plan import Toolpath, plan_toolpath
 from tattotronix.path.strokes import StrokeKind
 
-PARAMS = ToolpathParams.from_config(ToolpathConfig(compensate=True), MaskConfig(), PanelConfig())
+PARAMS = ToolpathParams.from_settings(ToolpathConfig(compensate=True), MaskConfig(), PanelConfig())
 NEEDLE = PARAMS.needle_width_mm
 FINE = 0.025  # the fidelity grid of these tests, mm
 
@@ -262,7 +262,7 @@ def test_the_emblems_planned_ink_meets_the_issues_figures() -> None:
 
     cfg = compose_settings(["toolpath.compensate=true"])
     mask = mask_of(cfg, None, "emblem")
-    tp = plan_toolpath(mask, ToolpathParams.from_config(cfg.toolpath, cfg.mask,
+    tp = plan_toolpath(mask, ToolpathParams.from_settings(cfg.toolpath, cfg.mask,
                                                         cfg.robot.panel))
     _, _, bleed, edge = _ink(mask, tp)
     assert bleed <= 0.05 and edge <= 0.1
@@ -309,7 +309,7 @@ def test_the_edges_of_a_photograph_are_drawn_as_centrelines() -> None:
     grey[40:160, 150:210] = 90  # a grey box: one rectangle of edge
     mask, _ = make_mask(grey, 0.25, MaskMethod.edges, min_region_mm2=0.0, edge_sigma_px=2.5)
     cfg = MaskConfig(method=MaskMethod.edges)
-    params = ToolpathParams.from_config(ToolpathConfig(compensate=True), cfg, PanelConfig())
+    params = ToolpathParams.from_settings(ToolpathConfig(compensate=True), cfg, PanelConfig())
     assert params.lines_only
     tp = plan_toolpath(mask, params)
     kinds = set(tp.drawing.kinds.tolist())
@@ -358,7 +358,7 @@ def test_a_line_about_the_threshold_width_is_drawn_placed_at_any_angle(
     cfg = compose_settings([f"artwork.source={png}", "artwork.name=line", "mask.width_mm=40",
                             f"mask.rotate_deg={turn_deg}"])
     mask, vector = drawing_inputs(cfg, png, "line")
-    params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
+    params = ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel)
     tp = plan_toolpath(mask, params, vector=vector)
     ink = tp.ink(mask, params.needle_width_mm, FINE)
     assert ink.missed(missed_reach_mm(params.pitch_mm, NEEDLE, mask.res_mm), NEEDLE) == []

@@ -24,7 +24,6 @@ from tattotronix.robot.mass import (
     combine,
     inertia_problems,
     link_names,
-    main,
     mass_report,
     mesh_properties,
     point_mass,
@@ -289,7 +288,9 @@ def test_cad_dir_missing_meshes(tmp_path, default_cfg):
     assert "forearm_link.stl" not in msg
     with pytest.raises(TattotronixError, match="directory not found"):
         mesh_dir_files(tmp_path / "absent", links)
-    assert main(["--cad-dir", str(root)]) == 2
+    from tattotronix.devtools import tables
+
+    assert tables.main(["mass", "--cad-dir", str(root)]) == 2
 
 
 # ------------------------------------------------------------- servos and the table
@@ -471,8 +472,17 @@ def test_committed_yaml_is_generated_from_meshes(cad_table):
     text = (PROJECT_ROOT / INERTIALS_FILE).read_text(encoding="utf-8")
     assert text == table_yaml(cad_table), (
         "conf/robot/inertials/printed.yaml is stale: regenerate it with "
-        "python -m tattotronix.robot.mass --cad-dir $TATTOTRONIX_CAD_DIR --write"
+        "python -m tattotronix.devtools.tables mass --cad-dir $TATTOTRONIX_CAD_DIR --write"
     )
+
+
+@pytest.mark.cad
+def test_the_table_command_prints_the_meshes_masses(cad_dir, capsys):
+    from tattotronix.devtools import tables
+
+    assert tables.main(["mass", "--cad-dir", str(cad_dir)]) == 0
+    out = capsys.readouterr().out
+    assert "upper_arm_link" in out and "moving (incl. pen)" in out
 
 
 @pytest.mark.cad

@@ -47,12 +47,12 @@ from tattotronix.path.polyline import (
     rotate_closed,
     smooth_closed,
 )
-from tattotronix.path.strokes import Drawing, build_drawing
+from tattotronix.path.strokes import StrokeSet, build_drawing
 
 from .test_toolpath_props import masks
 
 RES = 0.25
-PARAMS = ToolpathParams.from_config(ToolpathConfig(), MaskConfig(), PanelConfig())
+PARAMS = ToolpathParams.from_settings(ToolpathConfig(), MaskConfig(), PanelConfig())
 
 
 # ---------------------------------------------------------------- the former routines
@@ -85,7 +85,7 @@ def greedy_reference(costs: TransitionCosts, prec: _Precedence, first: int
 
 
 def seams_reference(
-    drawing: Drawing, seq: NDArray[np.intp], rev: NDArray[np.bool_], seam: NDArray[np.intp],
+    drawing: StrokeSet, seq: NDArray[np.intp], rev: NDArray[np.bool_], seam: NDArray[np.intp],
     mask: InkMask, params: ToolpathParams, costs: TransitionCosts,
 ) -> NDArray[np.intp]:
     """Seams chosen one outline at a time, as the planner did it before."""
@@ -260,7 +260,7 @@ def _params(pitch: float, outlines_first: bool) -> ToolpathParams:
     return dataclasses.replace(PARAMS, pitch_mm=pitch, outlines_first=outlines_first)
 
 
-def _drawing(mask: InkMask, params: ToolpathParams) -> Drawing | None:
+def _drawing(mask: InkMask, params: ToolpathParams) -> StrokeSet | None:
     drawing = build_drawing(mask, params)
     return drawing if len(drawing.strokes) >= 2 else None
 

@@ -182,7 +182,7 @@ def test_vector_lines_go_where_the_mask_goes(tmp_path: Path) -> None:
         for dc in (-1, 0, 1):
             near |= np.roll(np.roll(mask.ink, dr, 0), dc, 1)
     assert near[row, col].mean() == 1.0
-    params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
+    params = ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel)
     tp = plan_toolpath(mask, params, vector=vector)
     assert tp.metrics.entries >= 1
 

@@ -77,7 +77,7 @@ def catalogue(cfg: Config, desc: RobotDescription) -> tuple[ServoSpec, ...]:
 @pytest.fixture(scope="module")
 def weightless(cfg: Config, desc: RobotDescription) -> PlantSettings:
     """The plant settings with gravity off (the arm rests wherever it is put)."""
-    return replace(PlantSettings.from_config(cfg.plant, desc.gravity, desc.tip_frame),
+    return replace(PlantSettings.from_settings(cfg.plant, desc.gravity, desc.tip_frame),
                    gravity=0.0)
 
 

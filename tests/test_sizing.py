@@ -62,7 +62,7 @@ def _line_shares(svg: Path, *overrides: str) -> tuple[float, np.ndarray]:
 
     cfg = compose_settings([f"artwork.source={svg}", *overrides])
     mask = mask_of(cfg, svg, "waves")
-    tp = plan_toolpath(mask, ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel))
+    tp = plan_toolpath(mask, ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel))
     lines = svg_lines(svg, svg_intrinsic_size(read_svg(svg)), mask.ink.shape, mask.res_mm, 0.05)
     marking = tp.path.uvz_mm[tp.path.kind == 1, :2]
     return mask.res_mm, line_coverage(lines.paths, lines.widths_mm, marking,

@@ -31,7 +31,7 @@ RES = 0.25
 
 def default_params(**changes: object) -> ToolpathParams:
     """Parameters from the config schema's defaults (the one source of the numbers)."""
-    params = ToolpathParams.from_config(ToolpathConfig(), MaskConfig(), PanelConfig())
+    params = ToolpathParams.from_settings(ToolpathConfig(), MaskConfig(), PanelConfig())
     return dataclasses.replace(params, **changes)
 
 

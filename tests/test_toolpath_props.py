@@ -18,7 +18,7 @@ from tattotronix.path.strokes import StrokeKind
 RES = 0.25
 SIZE = 96  # grid pixels per side (24 mm)
 PARAMS = dataclasses.replace(  # the original's strokes (compensated: tests/test_inset.py)
-    ToolpathParams.from_config(ToolpathConfig(), MaskConfig(), PanelConfig()), compensate=False)
+    ToolpathParams.from_settings(ToolpathConfig(), MaskConfig(), PanelConfig()), compensate=False)
 
 @st.composite
 def masks(draw: st.DrawFn, size: int = SIZE) -> InkMask:

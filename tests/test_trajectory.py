@@ -33,6 +33,7 @@ from hypothesis import strategies as st
 
 from tattotronix.config.params import compose_settings
 from tattotronix.errors import TattotronixError
+from tattotronix.io.artifacts import TrajectoryRecord
 from tattotronix.io.provenance import file_sha256, provenance_json
 from tattotronix.kinematics import Chain, solve_path
 from tattotronix.kinematics.synthetic import logo_like_strokes, raster_strokes, stroke_path
@@ -47,7 +48,6 @@ from tattotronix.trajectory import (
     TrajectoryParams,
     corner_points,
     densify,
-    load_trajectory,
     path_derivatives,
     plan_trajectory,
     time_parameterise,
@@ -117,7 +117,7 @@ def npz(traj: Trajectory, tmp_path_factory: pytest.TempPathFactory) -> Path:
     ik = folder / "ik.npz"
     ik.write_bytes(b"stand-in input")
     file = folder / "drawing.npz"
-    traj.save_npz(file, provenance_json({"speed": 1.0}, {"ik": ik}, "abc123"))
+    traj.save(file, provenance_json({"speed": 1.0}, {"ik": ik}, "abc123"))
     return file
 
 
@@ -171,7 +171,7 @@ def test_tcp_is_the_fk_tip_and_the_drawing_is_kept(traj: Trajectory, drawing: Jo
 
 
 def test_load_trajectory_round_trip(npz: Path, traj: Trajectory) -> None:
-    back = load_trajectory(npz)
+    back = TrajectoryRecord.load(npz)
     assert back.joints == traj.joints and np.array_equal(back.t, traj.t)
     assert np.array_equal(back.qd, traj.qd) and back.provenance["code_version"] == "abc123"
 
@@ -449,7 +449,7 @@ def test_stage_end_to_end(tmp_path: Path, chain: Chain, desc: RobotDescription) 
     _tiny_inputs(tmp_path, chain, desc)
     res = _stage(tmp_path)
     assert res.returncode == 0, res.stderr
-    back = load_trajectory(tmp_path / "trajectories" / "tiny.npz")
+    back = TrajectoryRecord.load(tmp_path / "trajectories" / "tiny.npz")
     assert np.all(np.diff(back.t) > 0) and back.joints == desc.joint_names
     assert back.provenance["config"]["speed"] == 1.0
     assert back.provenance["config"]["robot"]["mass_model"] == "printed"

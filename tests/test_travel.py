@@ -27,11 +27,11 @@ import pytest
 from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
-from tattotronix.app.pipeline import ik_settings, plan_drawing, travel_planner
+from tattotronix.app.pipeline import plan_drawing, travel_planner
 from tattotronix.collision.model import CollisionModel
 from tattotronix.config.params import compose_settings
 from tattotronix.errors import TattotronixError
-from tattotronix.kinematics import Chain, solve_path
+from tattotronix.kinematics import Chain, ik_options, solve_path
 from tattotronix.robot.description import RobotDescription, build_description
 from tattotronix.trajectory import (
     JointLimits,
@@ -89,7 +89,7 @@ def _clearance_z(cfg: Any) -> float:
 
 def _ik(chain: Chain, cfg: Any, xyz: Any, **over: Any) -> np.ndarray:
     """IK of one tip target (needle down unless ``needle_axis`` is given); must succeed."""
-    kw = {**ik_settings(cfg.ik), **over}
+    kw = {**ik_options(cfg.ik), **over}
     res = solve_path(chain, np.asarray(xyz, float)[None, :], seed=list(cfg.ik.seed), **kw)
     assert res.ok, f"{xyz} is out of reach"
     return np.asarray(res.q[0], dtype=np.float64)
@@ -399,7 +399,7 @@ def test_way_home_never_lowers_the_pen(geometry: str, request: pytest.FixtureReq
     depth = cfg.toolpath.plunge_m
     home = np.asarray(params.home, dtype=np.float64)
     targets = _panel_grid(cfg, surface - depth)
-    sols = [solve_path(chain, p[None, :], seed=list(cfg.ik.seed), **ik_settings(cfg.ik))
+    sols = [solve_path(chain, p[None, :], seed=list(cfg.ik.seed), **ik_options(cfg.ik))
             for p in targets]
     unreachable = [tuple(p) for p, r in zip(targets, sols, strict=True) if not r.ok]
     assert not unreachable, f"grid points out of reach: {unreachable}"
@@ -443,7 +443,7 @@ def test_a_move_no_lift_saves_is_refused_naming_it(kind: str, chain: Chain,
     planner = TravelPlanner(chain, JointLimits.from_description(desc, 10.0),
                             CollisionModel(desc), margin_m=0.5, resolution_m=1e-4,
                             clearance_z_m=clear, lifts_m=[0.01, 0.02, 0.04, 0.08],
-                            max_step_m=5e-4, ik=ik_settings(cfg.ik))
+                            max_step_m=5e-4, ik=ik_options(cfg.ik))
     qa = _ik(chain, cfg, [0.18, -0.03, clear])
     qb = _ik(chain, cfg, [0.25, 0.04, clear])
     ends = {"hop": (qa, qb), "from_home": (HOME, qa), "to_home": (qb, HOME)}[kind]
@@ -462,7 +462,7 @@ def _tilted_hop(chain: Chain, desc: RobotDescription, lifts_m: list[float]
     clearance poses 120 mm apart in y whose joint line dips below the clearance height."""
     cfg = compose_settings()
     clear = _clearance_z(cfg)
-    ik = {**ik_settings(cfg.ik), "needle_axis": list(TILTED)}
+    ik = {**ik_options(cfg.ik), "needle_axis": list(TILTED)}
     planner = TravelPlanner(chain, JointLimits.from_description(desc, 10.0), None,
                             margin_m=0.001, resolution_m=1e-4, clearance_z_m=clear,
                             lifts_m=lifts_m, max_step_m=5e-4, ik=ik)
@@ -517,7 +517,7 @@ def test_with_the_needle_down_no_hop_over_the_panel_dips(chain: Chain,
     clear = _clearance_z(cfg)
     planner = TravelPlanner(chain, JointLimits.from_description(desc, 10.0), None,
                             margin_m=0.001, resolution_m=1e-4, clearance_z_m=clear,
-                            lifts_m=[0.01], max_step_m=5e-4, ik=ik_settings(cfg.ik))
+                            lifts_m=[0.01], max_step_m=5e-4, ik=ik_options(cfg.ik))
     poses = [_ik(chain, cfg, p) for p in _panel_grid(cfg, clear)]
     for i, qa in enumerate(poses):
         for j, qb in enumerate(poses):

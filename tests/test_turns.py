@@ -17,7 +17,7 @@ from tattotronix.path.turns import round_turns
 from tattotronix.trajectory import path_derivatives
 from tattotronix.trajectory.timelaw import JointLimits, TipLimit, time_parameterise
 
-PARAMS = ToolpathParams.from_config(ToolpathConfig(), MaskConfig(), PanelConfig())
+PARAMS = ToolpathParams.from_settings(ToolpathConfig(), MaskConfig(), PanelConfig())
 STEP, PITCH = PARAMS.step_mm, PARAMS.pitch_mm
 
 

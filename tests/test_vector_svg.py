@@ -359,7 +359,7 @@ def test_a_line_the_mask_drops_is_not_drawn_beside_the_ink_it_nearly_touches(
     for vector in (False, True):
         cfg = compose_settings([f"artwork.source={svg}", f"artwork.vector={vector}"])
         mask, lines = drawing_inputs(cfg, svg, "near")
-        params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
+        params = ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel)
         tp = plan_toolpath(mask, params, vector=lines)
         ink = tp.ink(mask, params.needle_width_mm, cfg.toolpath.ink_res_mm).fidelity
         bleeds[vector] = ink.bleed_max_mm

@@ -9,23 +9,26 @@ modelled servos, and draw it, from a notebook or a script::
     run = d.simulate("mujoco")     # tracking errors, the ink, the ink against the artwork
     real = d.predict(servos="mg996r", compensate=True)  # the servo plant
     d.draw(tt.Arm(dry_run=True))   # the arm: a dry run records its I2C writes
-    d.save("logo.npz")             # the trajectory, in the trajectory stage's format
+    d.save("logo")                 # the stages' files, as dvc repro writes them
 
 Every step runs the library calls the stages run, with the same settings (``conf/`` plus
 ``overrides``, Hydra's ``key=value`` strings, checked as a stage checks them), so a plan
 made here and one made by ``dvc repro`` from the same inputs have the same points and
-times (a test holds them equal). What a run
+times, and :meth:`Plan.save` writes the same files, byte for byte (tests hold both). What
+a run
 writes (its metrics, ink images, logs) goes under the plan's ``workdir`` (a temporary
 folder unless given), laid out as ``runs/`` is by hand (README, "Hand runs").
 """
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
 import math
 import tempfile
 from collections.abc import Iterable, Sequence
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -33,16 +36,31 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.app.draw import play
-from tattotronix.app.pipeline import plan_drawing_all
+from tattotronix.app.pipeline import PlannedDrawing, plan_drawing_all
+from tattotronix.app.records import (
+    save_artwork,
+    save_ik,
+    save_mask,
+    save_toolpath,
+    save_trajectory,
+    toolpath_record,
+)
 from tattotronix.art.artwork import artwork_name, resolve_source
 from tattotronix.art.grid import InkMask
-from tattotronix.config.params import CONF_DIR, compose_settings, with_overrides
+from tattotronix.art.vector import VectorLines
+from tattotronix.config.params import (
+    CONF_DIR,
+    PROJECT_ROOT,
+    compose_settings,
+    with_overrides,
+)
 from tattotronix.config.schema import Config
+from tattotronix.config.tracked import DVC_FILE, as_stage, definition_params
 from tattotronix.control.drawing import Drawing
 from tattotronix.errors import TattotronixError
-from tattotronix.io.artifacts import make_provenance
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.io.outputs import Outputs
+from tattotronix.io.provenance import plain_config, script_version
 from tattotronix.path.figure import toolpath_figure
 from tattotronix.path.plan import Toolpath
 from tattotronix.robot.description import RobotDescription, build_description
@@ -86,31 +104,47 @@ class Arm:
 
 @dataclass
 class Plan:
-    """A planned drawing: the toolpath, its IK path and its trajectory, and the settings and
-    robot they were planned with.
+    """A planned drawing: every step's result, and the settings and robot they were planned
+    with.
 
     Attributes:
         name: names the outputs (the artwork's stem unless given).
         cfg: the settings (``conf/`` plus the overrides).
+        overrides: the overrides the settings were made with (``key=value``).
         desc: the robot description.
-        mask: the ink mask the drawing was planned on (the artwork on the panel).
-        toolpath: the planned toolpath (panel mm).
-        path: the IK path (joint angles at every point).
-        trajectory: the timed trajectory.
+        planned: the artwork, ink mask, toolpath, IK solution and path, and trajectory.
         source: the artwork file (strokes sent in memory are written to one first).
         workdir: where runs write.
     """
 
     name: str
     cfg: Config
+    overrides: tuple[str, ...]
     desc: RobotDescription
-    mask: InkMask
-    toolpath: Toolpath
-    path: JointPath
-    trajectory: Trajectory
+    planned: PlannedDrawing
     source: Path
     workdir: Path
     _stats: JsonDict | None = field(default=None, repr=False)
+
+    @property
+    def mask(self) -> InkMask:
+        """The ink mask the drawing was planned on (the artwork on the panel)."""
+        return self.planned.mask
+
+    @property
+    def toolpath(self) -> Toolpath:
+        """The planned toolpath (panel mm)."""
+        return self.planned.toolpath
+
+    @property
+    def path(self) -> JointPath:
+        """The IK path (joint angles at every point)."""
+        return self.planned.path
+
+    @property
+    def trajectory(self) -> Trajectory:
+        """The timed trajectory."""
+        return self.planned.trajectory
 
     # ------------------------------------------------------------------ figures
     @property
@@ -150,16 +184,47 @@ class Plan:
         toolpath_figure(self.toolpath, size, out, self.name)
         return out
 
-    def save(self, path: str | Path) -> Path:
-        """Write the trajectory in the trajectory stage's format (``joints``, ``t``, ``q``,
-        ``qd``, ``qdd``, ``kind``, ``marked``, ``tcp``; README, "The stages"), with a provenance
-        that names the settings, the artwork and the URDF it was planned with; the path."""
-        out = Path(path)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        urdf, _ = _robot_models(self.desc, self.workdir)
-        self.trajectory.save_npz(out, make_provenance(self.cfg, {"artwork": self.source,
-                                                                 "urdf": urdf}))
-        return out
+    def save(self, folder: str | Path) -> Path:
+        """Write the files the stages from ``artwork`` to ``trajectory`` write, laid out as
+        under ``data/``: ``artwork/<name>.png`` and ``-lines.npz``, ``mask/<name>.npz``,
+        ``toolpaths/<name>.npz``, ``robot/<robot>.urdf``, ``ik/<name>.npz`` and
+        ``trajectories/<name>.npz`` (the trajectory stage's format: README, "The stages");
+        the trajectory's path.
+
+        Each file records the provenance its stage would. In the project's checkout
+        (beside ``dvc.yaml``) that is what ``dvc repro`` records, so the files are byte for
+        byte those of the stages for the same artwork and settings (an entry of ``vars:
+        artworks`` with the same overrides); elsewhere, the whole config and the code
+        imported.
+        """
+        root = Path(folder)
+        pl, name = self.planned, self.name
+        # one transaction a step: each file is in place before the next step hashes it
+        with self._as_stage("artwork"), Outputs(root, root=root).transaction() as out:
+            png, lines = save_artwork(out, name, pl.artwork, pl.lines or VectorLines.empty())
+        with self._as_stage("mask"), Outputs(root, root=root).transaction() as out:
+            mask = save_mask(out, self.cfg, name, pl.mask, png)
+        inputs = {"mask": mask} if pl.lines is None else {"mask": mask, "lines": lines}
+        with self._as_stage("toolpath"), Outputs(root, root=root).transaction() as out:
+            tp = save_toolpath(out, self.cfg, name, pl.toolpath, inputs)
+        urdf, _ = _robot_models(self.desc, root)
+        with self._as_stage("ik"), Outputs(root, root=root).transaction() as out:
+            ik = save_ik(out, self.cfg, name, self.desc.joint_names, pl.ik.q, pl.path.tcp,
+                         pl.ik.residual, toolpath_record(pl.toolpath),
+                         {"toolpath": tp, "urdf": urdf})
+        with self._as_stage("trajectory"), Outputs(root, root=root).transaction() as out:
+            return save_trajectory(out, self.cfg, name, pl.trajectory,
+                                   {"ik": ik, "urdf": urdf})
+
+    def _as_stage(self, stage: str) -> AbstractContextManager[None]:
+        """The provenance rules of ``stage`` under DVC (its tracked params, this plan's
+        overrides and its script's code version), in the project's checkout; else none
+        (the whole config is recorded)."""
+        if not (PROJECT_ROOT / DVC_FILE).is_file():
+            return contextlib.nullcontext()
+        keys = definition_params(stage, PROJECT_ROOT, plain_config(self.cfg))
+        version = script_version(PROJECT_ROOT / "stages" / f"{stage}.py", PROJECT_ROOT)
+        return as_stage(keys, self.overrides, version)
 
     # ------------------------------------------------------------------ runs
     def _drawing(self) -> Drawing:
@@ -246,7 +311,9 @@ def _robot_models(desc: RobotDescription, workdir: Path) -> tuple[Path, Path]:
 
 
 def _settings(source: str | Path, name: str | None, keywords: dict[str, object],
-              overrides: Iterable[str]) -> Config:
+              overrides: Iterable[str]) -> tuple[Config, list[str]]:
+    """The settings of a plan and the overrides that make them, ``artwork.name`` always
+    among them (as in each stage's command in ``dvc.yaml``)."""
     items = [f"artwork.source={source}"]
     if name is not None:
         items.append(f"artwork.name={name}")
@@ -254,7 +321,13 @@ def _settings(source: str | Path, name: str | None, keywords: dict[str, object],
         if value is not None:
             text = str(value).lower() if isinstance(value, bool) else str(value)
             items.append(f"{_KEYWORDS[key]}={text}")
-    return settings_of([*items, *overrides])
+    items += overrides
+    cfg = settings_of(items)
+    if cfg.artwork.name is None:
+        named = f"artwork.name={artwork_name(cfg.artwork)}"
+        cfg = with_overrides(cfg, [named])
+        items.insert(1, named)
+    return cfg, items
 
 
 @functools.lru_cache(maxsize=1)
@@ -307,14 +380,13 @@ def plan(source: str | Path, *, width_mm: float | None = None, height_mm: float 
     """
     keywords: dict[str, object] = {"width_mm": width_mm, "height_mm": height_mm,
                                    "rotate_deg": rotate_deg, "fill": fill, "vector": vector}
-    cfg = _settings(source, name, keywords, overrides)
+    cfg, items = _settings(source, name, keywords, overrides)
     label = artwork_name(cfg.artwork)
     desc = build_description(cfg.robot)
     planned = plan_drawing_all(cfg, source, label, desc)
     folder = Path(workdir) if workdir is not None else Path(
         tempfile.mkdtemp(prefix=f"tattotronix-{label}-"))
-    return Plan(label, cfg, desc, planned.mask, planned.toolpath, planned.path,
-                planned.trajectory, Path(resolve_source(source)), folder)
+    return Plan(label, cfg, tuple(items), desc, planned, Path(resolve_source(source)), folder)
 
 
 def strokes_svg(strokes: Sequence[ArrayLike], panel_size_mm: Sequence[float],

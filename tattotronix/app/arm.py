@@ -18,7 +18,6 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from tattotronix.app.pipeline import ik_settings
 from tattotronix.config.schema import Config
 from tattotronix.control.drawing import Drawing
 from tattotronix.errors import TattotronixError
@@ -34,7 +33,7 @@ from tattotronix.hardware.servos import Calibration
 from tattotronix.io.artifacts import run_dir, run_label
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.io.outputs import Outputs
-from tattotronix.kinematics import Chain
+from tattotronix.kinematics import Chain, ik_options
 from tattotronix.plants.servo_plant import ServoSpec
 from tattotronix.robot.description import RobotDescription
 
@@ -144,7 +143,7 @@ def play_on_arm(cfg: Config, out: Outputs, desc: RobotDescription, drawing: Draw
         name=drawing.name, program=program, calib=calib, chain=chain,
         run_dir=folder, state_file=state_file_of(cfg, out.data, folder),
         clearance_z_m=clearance, surface_z_m=surface, feed_m_s=cfg.toolpath.feed_mark_m_s,
-        ramp_rad_s=speed, ik=ik_settings(cfg.ik), dry_run=bool(cfg.dry_run),
+        ramp_rad_s=speed, ik=ik_options(cfg.ik), dry_run=bool(cfg.dry_run),
         realtime=bool(cfg.realtime), resume=bool(cfg.resume),
         fail_after_writes=cfg.hardware.fail_after_writes,
         save_every_s=float(cfg.hardware.save_every_s))

@@ -36,7 +36,6 @@ from tattotronix.io.artifacts import (
     RunLogRecord,
     ToolpathRecord,
     TrajectoryRecord,
-    make_provenance,
     run_dir,
     run_label,
 )
@@ -51,7 +50,7 @@ from tattotronix.path.fidelity import (
 )
 from tattotronix.path.inkfigure import artwork_ink_figure, plan_ink_figure
 from tattotronix.robot.description import RobotDescription
-from tattotronix.trajectory import JointPath, load_trajectory
+from tattotronix.trajectory import JointPath
 
 __all__ = ["available_drawings", "check_run_source", "resolve_drawing", "score_and_write"]
 
@@ -123,7 +122,7 @@ def resolve_drawing(cfg: Config, data: Path, desc: RobotDescription) -> Drawing:
     same_path = True
     planned_from: object = None
     if stored.exists():
-        st = load_trajectory(stored)
+        st = TrajectoryRecord.load(stored)
         config = st.provenance.get("config")
         have = config if isinstance(config, Mapping) else None
         path_diff = _differ(_path_settings(cfg), _path_settings(have) if have else None)
@@ -233,7 +232,7 @@ def score_and_write(cfg: Config, out: Outputs, loop: ClosedLoop,
         tau=run.tau[idx], q_ref=run.ref.q[idx], qd_ref=run.ref.qd[idx], tip=tip[idx],
         tip_ref=tip_ref[idx], error_m=err.error_m, down=err.down, settled=err.settled,
     ).save(out.tmp_path(RunLogRecord.path(out.root, label=label)),
-           make_provenance(cfg, drawing.inputs))
+           out.provenance(cfg, drawing.inputs))
     metrics = loop.metrics(err)
     artwork_file = drawing.inputs.get("artwork")
     metrics["source"] = None if artwork_file is None else source_label(artwork_file)

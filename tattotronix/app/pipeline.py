@@ -16,13 +16,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike
 
-from tattotronix.art.artwork import load_artwork
+from tattotronix.art.artwork import Artwork, load_artwork
 from tattotronix.art.grid import InkMask
 from tattotronix.art.mask import mask_on_panel
 from tattotronix.art.vector import VectorLines, artwork_lines
 from tattotronix.config.schema import Config, IkConfig
 from tattotronix.errors import TattotronixError
-from tattotronix.kinematics import Chain, IkOptions, IkResult, solve_path
+from tattotronix.kinematics import Chain, IkResult, ik_options, solve_path
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.plan import Toolpath, check_needle, plan_toolpath
 from tattotronix.robot.description import RobotDescription
@@ -30,18 +30,11 @@ from tattotronix.trajectory import JointLimits, JointPath, Trajectory, Trajector
 from tattotronix.trajectory import plan_trajectory as _plan_trajectory
 from tattotronix.trajectory.travel import TravelPlanner
 
-__all__ = ["PlannedDrawing", "check_reach", "drawing_inputs", "ik_settings", "mask_of",
-           "plan_drawing", "plan_drawing_all", "plan_drawing_on", "solve_ik",
+__all__ = ["PlannedDrawing", "artwork_inputs", "check_reach", "drawing_inputs",
+           "mask_of", "plan_drawing", "plan_drawing_all", "plan_drawing_on", "solve_ik",
            "straight_travel_baseline", "trajectory_from_path", "travel_planner"]
 
 log = logging.getLogger("tattotronix.app.pipeline")
-
-
-def ik_settings(ik: IkConfig) -> IkOptions:
-    """The IK keyword arguments of the ``ik`` config group (for densify's IK)."""
-    return {"needle_axis": list(ik.needle_axis), "dls_lambda": float(ik.dls_lambda),
-            "max_iter": int(ik.max_iter), "tol": float(ik.tol),
-            "anchor_spacing_m": float(ik.anchor_spacing_m)}
 
 
 def solve_ik(chain: Chain, xyz_m: ArrayLike, uvz_mm: ArrayLike, ik: IkConfig,
@@ -51,9 +44,7 @@ def solve_ik(chain: Chain, xyz_m: ArrayLike, uvz_mm: ArrayLike, ik: IkConfig,
     Raises:
         IkFailure: a point failed (named in panel mm, with its residual and reason).
     """
-    res = solve_path(chain, xyz_m, needle_axis=list(ik.needle_axis), seed=list(ik.seed),
-                     dls_lambda=ik.dls_lambda, max_iter=ik.max_iter, tol=ik.tol,
-                     anchor_spacing_m=ik.anchor_spacing_m, progress=progress)
+    res = solve_path(chain, xyz_m, seed=list(ik.seed), progress=progress, **ik_options(ik))
     res.raise_if_failed(uvz_mm=uvz_mm)
     return res
 
@@ -70,7 +61,7 @@ def travel_planner(cfg: Config, desc: RobotDescription, chain: Chain,
         resolution_m=cfg.collision.resolution_m,
         clearance_z_m=panel_top + cfg.toolpath.clearance_m,
         lifts_m=cfg.trajectory.lifts_m, max_step_m=cfg.trajectory.max_step_m,
-        ik=ik_settings(cfg.ik), reach_m=cfg.trajectory.blend_reach_m)
+        ik=ik_options(cfg.ik), reach_m=cfg.trajectory.blend_reach_m)
 
 
 def trajectory_from_path(cfg: Config, path: JointPath, desc: RobotDescription) -> Trajectory:
@@ -80,7 +71,7 @@ def trajectory_from_path(cfg: Config, path: JointPath, desc: RobotDescription) -
     limits = JointLimits.from_description(desc, params.accel_rad_s2)
     chain = Chain.from_description(desc)
     planner = travel_planner(cfg, desc, chain, limits) if params.travel == "planned" else None
-    return _plan_trajectory(path, chain, limits, params, ik=ik_settings(cfg.ik),
+    return _plan_trajectory(path, chain, limits, params, ik=ik_options(cfg.ik),
                             planner=planner, panel_origin_m=list(cfg.toolpath.panel_origin))
 
 
@@ -92,7 +83,7 @@ def straight_travel_baseline(cfg: Config, path: JointPath, desc: RobotDescriptio
                      travel="straight")
     limits = JointLimits.from_description(desc, params.accel_rad_s2)
     traj = _plan_trajectory(path, Chain.from_description(desc), limits, params,
-                            ik=ik_settings(cfg.ik))
+                            ik=ik_options(cfg.ik))
     metrics: dict[str, Any] = traj.metrics()  # read back: JSON values
     return {"duration_s": traj.duration_s, "travel_s": metrics["travel_s"]}
 
@@ -119,6 +110,18 @@ def drawing_inputs(cfg: Config, source: str | Path | None, name: str,
         TattotronixError: unreadable art, or a mask the settings refuse (one off the panel
             or out of the arm's reach).
     """
+    _, mask, vector = artwork_inputs(cfg, source, name, desc)
+    return mask, vector
+
+
+def artwork_inputs(cfg: Config, source: str | Path | None, name: str,
+                   desc: RobotDescription | None = None
+                   ) -> tuple[Artwork, InkMask, VectorLines | None]:
+    """:func:`drawing_inputs`, and the artwork on its grid (what the artwork stage writes).
+
+    Raises:
+        TattotronixError: as :func:`drawing_inputs`.
+    """
     m = cfg.mask
     art = load_artwork(source, m.width_mm, m.res_mm, cfg.artwork.max_pixels, name,
                        svg_local_files=cfg.artwork.svg_local_files,
@@ -129,7 +132,7 @@ def drawing_inputs(cfg: Config, source: str | Path | None, name: str,
     check_reach(cfg, mask, desc)
     vector = (artwork_lines(source, art.shape, art.res_mm, cfg.toolpath.step_mm)
               if cfg.artwork.vector else None)
-    return mask, vector
+    return art, mask, vector
 
 
 def check_reach(cfg: Config, mask: InkMask, desc: RobotDescription | None = None) -> None:
@@ -157,12 +160,9 @@ def check_reach(cfg: Config, mask: InkMask, desc: RobotDescription | None = None
     uvz = np.concatenate([np.column_stack([hull, np.full(len(hull), z)])
                           for z in (-float(tp.plunge_mm), float(tp.clearance_mm))])
     xyz = np.asarray(tp.panel_origin, dtype=np.float64) + uvz / 1000.0
-    ik = cfg.ik
     desc = build_description(cfg.robot) if desc is None else desc
-    res = solve_path(Chain.from_description(desc), xyz,
-                     needle_axis=list(ik.needle_axis), seed=list(ik.seed),
-                     dls_lambda=ik.dls_lambda, max_iter=ik.max_iter, tol=ik.tol,
-                     anchor_spacing_m=ik.anchor_spacing_m)
+    res = solve_path(Chain.from_description(desc), xyz, seed=list(cfg.ik.seed),
+                     **ik_options(cfg.ik))
     if res.ok:
         return
     i = int(res.failed[0])
@@ -197,11 +197,15 @@ def plan_drawing_on(cfg: Config, source: str | Path | None, name: str,
 
 @dataclass(frozen=True)
 class PlannedDrawing:
-    """Every step of a drawing planned in memory: the ink mask it was planned on, the
-    toolpath, the IK path and the trajectory."""
+    """Every step of a drawing planned in memory: the artwork on its grid and its vector
+    lines (None unless ``artwork.vector``), the ink mask it was planned on, the toolpath,
+    the IK solution and path, and the trajectory."""
 
+    artwork: Artwork
+    lines: VectorLines | None
     mask: InkMask
     toolpath: Toolpath
+    ik: IkResult
     path: JointPath
     trajectory: Trajectory
 
@@ -213,8 +217,8 @@ def plan_drawing_all(cfg: Config, source: str | Path | None, name: str,
     Raises:
         TattotronixError: as :func:`plan_drawing`.
     """
-    mask, vector = drawing_inputs(cfg, source, name, desc)
-    params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
+    art, mask, vector = artwork_inputs(cfg, source, name, desc)
+    params = ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel)
     tp = plan_toolpath(mask, params, vector=vector)
     check_needle(tp, mask, params.needle_width_mm, cfg.toolpath.ink_res_mm)
     chain = Chain.from_description(desc)
@@ -223,4 +227,4 @@ def plan_drawing_all(cfg: Config, source: str | Path | None, name: str,
     path = JointPath.from_arrays(desc.joint_names, res.q, tcp, tp.path.kind, tp.path.uvz_mm)
     traj = trajectory_from_path(cfg, path, desc)
     log.info("planned %s in memory: %d points, %.1f s", name, len(traj.t), traj.duration_s)
-    return PlannedDrawing(mask, tp, path, traj)
+    return PlannedDrawing(art, vector, mask, tp, res, path, traj)

@@ -140,7 +140,7 @@ def run_servo_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Dra
     if last - first < 1:
         raise TattotronixError(f"the stretch {start:.3f}..{end:.3f} s is shorter than two "
                                f"servo frames ({1 / prog.frame_hz * 1e3:g} ms)")
-    settings = PlantSettings.from_config(cfg.plant, desc.gravity, desc.tip_frame)
+    settings = PlantSettings.from_settings(cfg.plant, desc.gravity, desc.tip_frame)
     if plant_dt_s is not None:
         settings = replace(settings, dt_s=float(plant_dt_s))
     command = setup.command[first:last + 1]

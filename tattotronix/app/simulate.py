@@ -77,7 +77,7 @@ def run_closed_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Dr
     effort = np.array([j.effort for j in desc.joints])
     limit = effort if ctl.torque_limit_nm is None else float(ctl.torque_limit_nm)
     controller = Controller(dyn, gains, ctl.structure, rate, limit)
-    settings = PlantSettings.from_config(cfg.plant, desc.gravity, desc.tip_frame)
+    settings = PlantSettings.from_settings(cfg.plant, desc.gravity, desc.tip_frame)
     if plant_dt_s is not None:
         settings = replace(settings, dt_s=float(plant_dt_s))
     sub = substeps_per_tick(controller.period_s, settings.dt_s)

@@ -12,13 +12,12 @@ are 8 mm apart. So the fallback geometry is a **k-DOP** per link: the polytope b
 offsets are the mesh's extreme extent along each normal, rounded outward. It encloses the
 mesh exactly as the bounding box does (the box is the 6-DOP) but far more tightly. The
 offsets are derived data, like the printed inertial table: ``python -m
-tattotronix.collision.shapes --cad-dir ../shared/cad/meshes --write`` regenerates
+tattotronix.devtools.tables kdops --cad-dir ../shared/cad/meshes --write`` regenerates
 :data:`KDOP_FILE`, and a test holds the committed file to the meshes.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 from collections.abc import Iterable
@@ -30,15 +29,15 @@ from numpy.typing import NDArray
 from tattotronix.errors import TattotronixError
 from tattotronix.robot.stl import mesh_dir_files, read_stl
 
-__all__ = ["KDOP_DIRECTIONS", "KDOP_FILE", "directions", "kdop_offsets", "kdop_vertices",
-           "load_kdops", "mesh_vertices", "write_kdops"]
+__all__ = ["KDOP_DIRECTIONS", "KDOP_FILE", "KDOP_ROUND_M", "directions", "kdop_offsets",
+           "kdop_vertices", "load_kdops", "mesh_vertices", "write_kdops"]
 
 Array = NDArray[np.float64]
 #: the committed k-DOP offsets of each link (m, link frame), generated from the CAD meshes
 KDOP_FILE = Path(__file__).with_name("kdop.json")
 #: planes per k-DOP
 KDOP_DIRECTIONS = 128
-_ROUND_M = 1e-5  # offsets are rounded up to 0.01 mm, so the polytope still encloses
+KDOP_ROUND_M = 1e-5  # offsets are rounded up to 0.01 mm, so the polytope still encloses
 
 
 def directions(k: int = KDOP_DIRECTIONS) -> Array:
@@ -61,7 +60,7 @@ def mesh_vertices(stl: str | Path, scale: float | Iterable[float]) -> Array:
 def kdop_offsets(points: Array, k: int = KDOP_DIRECTIONS) -> Array:
     """The extent of ``points`` along each of the ``k`` directions, rounded outward, (k,)."""
     ext = (np.asarray(points, dtype=np.float64) @ directions(k).T).max(axis=0)
-    return np.ceil(ext / _ROUND_M) * _ROUND_M
+    return np.ceil(ext / KDOP_ROUND_M) * KDOP_ROUND_M
 
 
 def kdop_vertices(offsets: Array) -> Array:
@@ -125,37 +124,3 @@ def write_kdops(cad_dir: str | Path, links: Iterable[str], scale: float,
            "links": {link: [round(float(v), 5) for v in off] for link, off in table.items()}}
     Path(file).write_text(json.dumps(doc, indent=1) + "\n")
     return table
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``--cad-dir DIR [--write]``: compare (or rewrite) the committed k-DOP table."""
-    from omegaconf import OmegaConf
-
-    from tattotronix.config.params import PROJECT_ROOT
-
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--cad-dir", required=True)
-    ap.add_argument("--write", action="store_true")
-    args = ap.parse_args(argv)
-    robot = OmegaConf.load(PROJECT_ROOT / "params.yaml").robot
-    links = [robot.base_link] + [j.child for j in robot.joints]
-    scale = float(robot.mesh_scale)
-    if args.write:
-        write_kdops(args.cad_dir, links, scale)
-        print(f"wrote {KDOP_FILE}")
-        return 0
-    files = mesh_dir_files(args.cad_dir, links)
-    stored = load_kdops()
-    worst = 0.0
-    for link, f in files.items():
-        fresh = kdop_offsets(mesh_vertices(f, scale))
-        if link not in stored:
-            print(f"{link}: not in {KDOP_FILE.name}")
-            return 1
-        worst = max(worst, float(np.abs(fresh - stored[link]).max()))
-    print(f"largest difference from the meshes: {worst * 1000:.4f} mm")
-    return 0 if worst <= _ROUND_M else 1
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

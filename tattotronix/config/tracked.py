@@ -20,7 +20,8 @@ from __future__ import annotations
 import json
 import posixpath
 import re
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -29,9 +30,10 @@ import yaml
 from tattotronix.errors import ConfigError
 from tattotronix.io.codegraph import write_stamp_folder
 from tattotronix.io.outputs import override_key
+from tattotronix.io.provenance import fixed_code_version, recorded_keys
 
-__all__ = ["DVC_FILE", "PARAM_STAMPS", "override_keys", "param_stamps", "stage_names",
-           "tracked_params", "write_param_stamps"]
+__all__ = ["DVC_FILE", "PARAM_STAMPS", "as_stage", "definition_params", "override_keys",
+           "param_stamps", "stage_names", "tracked_params", "write_param_stamps"]
 
 #: the pipeline file, at the project root
 DVC_FILE = "dvc.yaml"
@@ -144,6 +146,33 @@ def tracked_params(stage: str, root: Path, params: Mapping[str, object]) -> tupl
     if name not in stages:
         raise ConfigError(f"{root / DVC_FILE} has no stage {name!r} (DVC_STAGE)")
     return tuple(stages[name])
+
+
+def definition_params(definition: str, root: Path, params: Mapping[str, object]
+                      ) -> tuple[str, ...]:
+    """The params ``dvc.yaml`` lists for the stage ``definition`` (a plain stage, or any item
+    of a ``foreach``: its items list the same).
+
+    Raises:
+        ConfigError: as :func:`tracked_params`, or no such stage.
+    """
+    stages = _stage_params(_read(root), params)
+    for name, keys in stages.items():
+        if name.split("@")[0] == definition:
+            return tuple(keys)
+    raise ConfigError(f"{root / DVC_FILE} has no stage {definition!r}")
+
+
+@contextmanager
+def as_stage(keys: Sequence[str], overrides: Sequence[str], version: str | None
+             ) -> Iterator[None]:
+    """Within the block, every provenance records what a DVC stage's does: the params it
+    tracks (``keys``) and those its command line sets (``overrides``), and the code
+    ``version`` (its stamp's; None: as computed now). The stage runner runs each stage
+    body in it, and the Python API each step of a plan it saves, so both write the same
+    bytes from the same inputs."""
+    with recorded_keys((*keys, *override_keys(overrides))), fixed_code_version(version):
+        yield
 
 
 def stage_names(root: Path, params: Mapping[str, object] | None = None) -> list[str]:

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 from decimal import ROUND_HALF_UP, Decimal
 from pathlib import Path
 
-from tattotronix.report.certify import (
+from tattotronix.devtools.certify import (
     METRICS_DIR,
     PARAMS_FILE,
     Failure,

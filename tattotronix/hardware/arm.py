@@ -547,6 +547,32 @@ class _Start:
 
 
 @dataclass
+class _SessionRun:
+    """How far a session got (the parts of :meth:`ArmSession._session` share it).
+
+    Attributes:
+        start: the program frame it started drawing from.
+        stage: ``start``, then ``lift`` (the first one), ``ramp`` or ``approach``,
+            ``draw``, and ``stop`` (the lift after a stop request).
+        stopped_in: the stage a stop request ended ("" if none did).
+        lifted: frames of the last lift (the first one, or the one after a stop).
+        status: ``drawing``, then ``done``, ``paused`` or ``failed``.
+        error: what failed it.
+        outputs_off: every output was switched off at the end.
+        stream: the frame stream, once the board started.
+    """
+
+    start: int
+    stage: str = "start"
+    stopped_in: str = ""
+    lifted: int = 0
+    status: str = "drawing"
+    error: TattotronixError | None = None
+    outputs_off: bool = False
+    stream: _Stream | None = None
+
+
+@dataclass
 class ArmSession:
     """One ``draw.py backend=arm`` run.
 
@@ -561,7 +587,7 @@ class ArmSession:
         surface_z_m: the panel surface's height (arm frame), m.
         feed_m_s: the approach feed (the marking feed), m/s.
         ramp_rad_s: the fastest joint speed of ramps, rad/s.
-        ik: IK keyword arguments for lifts and approaches (``pipeline.ik_settings``).
+        ik: IK keyword arguments for lifts and approaches (``kinematics.ik_options``).
         dry_run, realtime, resume: as configured.
         fail_after_writes: dry-run fault injection.
         save_every_s: refresh the state file this often (of program time).
@@ -714,11 +740,59 @@ class ArmSession:
         state.save(self.state_file)
 
     def _session(self, bus: SMBusLike, hook: list[_HookStep]) -> JsonDict:
+        """One session on the board: the state it starts from, the frames
+        (:meth:`_play_session`), every output off whatever happened, then the state saved
+        with its reason (:meth:`_reason`) and the summary (:meth:`_summary`)."""
+        prog = self.program
+        digest = prog.digest()
+        loaded = ArmState.load(self.state_file, len(self.calib.joints))  # the lock is ours
+        begin = self._begin(loaded, digest)
+        state = self._open_state(loaded, begin, digest)
+        logs = _Logs(self.run_dir, state.session,
+                     bus if isinstance(bus, RecordingBus) else None)
+        run = _SessionRun(begin.frame)
+        t0 = time.perf_counter()
+        board = PCA9685(bus, self.calib.address, self.calib.oscillator_hz,
+                        handle_signals=False)
+        stop = _StopRequests()
+        stop.install()
+        try:
+            try:
+                board.start(self.calib.frame_hz)
+                run.stage = "lift"
+                run.stream = _Stream(board, self.calib, prog.count_us, prog.frame_hz,
+                                     self.realtime, logs, stop, hook)
+                run.stream.q = begin.q.copy()
+                self._save(state, run.stream, logs)
+                self._play_session(run, run.stream, state, begin.q, stop, logs)
+            except TattotronixError as exc:  # a bus error; an unreachable lift
+                run.status, run.error = "failed", exc
+            finally:
+                try:
+                    board.all_off()
+                    run.outputs_off = True
+                except BusError as exc:
+                    log.error("switching the PCA9685 outputs off failed: %s", exc)
+                    if run.error is None:
+                        run.status, run.error = "failed", exc
+        finally:
+            if run.stream is not None:
+                state.q = run.stream.q.tolist()
+            state.status = run.status if run.status != "drawing" else "failed"
+            state.reason = self._reason(run, state, stop)
+            try:
+                logs.close()
+            finally:
+                state.save(self.state_file)
+                stop.restore()
+        return self._summary(run, state, begin, time.perf_counter() - t0, stop)
+
+    def _open_state(self, loaded: ArmState | None, begin: _Start, digest: str) -> ArmState:
+        """The state this session starts from and keeps up to date: the saved one (or, with
+        none, the arm at rest at the zero pose), now this drawing's, at ``begin``, in a new
+        session."""
         prog = self.program
         n = len(self.calib.joints)
-        digest = prog.digest()
-        loaded = ArmState.load(self.state_file, n)  # again, now that the lock is ours
-        begin = self._begin(loaded, digest)
         margin = int(round(RESUME_MARGIN_S * prog.frame_hz))
         if loaded is None:
             log.warning("no arm state file (%s): assuming the arm rests at the zero pose; "
@@ -735,131 +809,112 @@ class ArmSession:
                     if self.resume else "")
         session_no = max(_read_tail(self.run_dir / "poses.jsonl", n).session,
                          state.session if state.drawing == self.name else 0) + 1
-        logs = _Logs(self.run_dir, session_no, bus if isinstance(bus, RecordingBus) else None)
-        start = begin.frame
         state.drawing, state.program, state.frames = self.name, digest, prog.frames
-        state.session, state.frame, state.drawn = session_no, start, begin.drawn
+        state.session, state.frame, state.drawn = session_no, begin.frame, begin.drawn
         state.status, state.reason, state.q = "drawing", "", begin.q.tolist()
-        stream: _Stream | None = None
-        stage = "start"  # then lift (the first one), ramp / approach, draw, stop (its lift)
-        stopped_in = ""
-        lifted = 0  # frames of the last lift (the first one, or the one after a stop)
-        status, error = "drawing", None
-        outputs_off = False
+        return state
+
+    def _play_session(self, run: _SessionRun, st: _Stream, state: ArmState, q_start: Array,
+                      stop: _StopRequests, logs: _Logs) -> None:
+        """Send the frames: the lift from where the arm is (never cut short), the ramp (or
+        on resume the approach) to the first frame, the drawing, and after a stop request
+        the lift; ``run`` says how far it got."""
+        prog = self.program
+        start = run.start
         save_every = max(1, int(round(self.save_every_s * prog.frame_hz)))
-        t0 = time.perf_counter()
-        board = PCA9685(bus, self.calib.address, self.calib.oscillator_hz,
-                        handle_signals=False)
-        stop = _StopRequests()
-        stop.install()
-        try:
-            try:
-                board.start(self.calib.frame_hz)
-                stage = "lift"
-                st = stream = _Stream(board, self.calib, prog.count_us, prog.frame_hz,
-                                      self.realtime, logs, stop, hook)
-                st.q = begin.q.copy()
-                self._save(state, st, logs)
 
-                def play(frames: Array, phase: str, interruptible: bool) -> bool:
-                    for q in frames:
-                        if interruptible and stop.asked:
-                            return False
-                        st.send(q, phase)
-                        if st.sent % save_every == 0:
-                            self._save(state, st, logs)
-                    return True
+        def play(frames: Array, phase: str, interruptible: bool) -> bool:
+            for q in frames:
+                if interruptible and stop.asked:
+                    return False
+                st.send(q, phase)
+                if st.sent % save_every == 0:
+                    self._save(state, st, logs)
+            return True
 
-                # a needle left in the work (a bus failure or a crash stops without a lift)
-                # comes straight up first; a stop signal waits for that lift
-                lift = self._lift(begin.q)
-                play(lift, "lift", interruptible=False)
-                lifted = len(lift)
-                stage = "approach" if self.resume else "ramp"
-                lead = (self._approach(st.q, prog.q[start]) if self.resume else
-                        ramp(st.q, prog.q[start], self.ramp_rad_s, prog.frame_hz))
+        # a needle left in the work (a bus failure or a crash stops without a lift) comes
+        # straight up first; a stop signal waits for that lift
+        lift = self._lift(q_start)
+        play(lift, "lift", interruptible=False)
+        run.lifted = len(lift)
+        run.stage = "approach" if self.resume else "ramp"
+        lead = (self._approach(st.q, prog.q[start]) if self.resume else
+                ramp(st.q, prog.q[start], self.ramp_rad_s, prog.frame_hz))
+        if stop.asked:
+            run.stopped_in = "lift"
+        elif not play(lead, run.stage, interruptible=True):
+            run.stopped_in = run.stage
+        else:
+            run.stage = "draw"
+            for frame in range(start, prog.frames):
                 if stop.asked:
-                    stopped_in = "lift"
-                elif not play(lead, stage, interruptible=True):
-                    stopped_in = stage
-                else:
-                    stage = "draw"
-                    for frame in range(start, prog.frames):
-                        if stop.asked:
-                            stopped_in = "draw"
-                            break
-                        st.send(prog.q[frame], "draw", frame, prog.row(frame))
-                        state.frame, state.drawn = frame + 1, max(state.drawn, frame + 1)
-                        if st.sent % save_every == 0:
-                            self._save(state, st, logs)
-                    else:
-                        status = "done"
-                if stopped_in and stopped_in != "lift":
-                    stage = "stop"
-                    lift = self._lift(st.q)
-                    play(lift, "lift", interruptible=False)
-                    lifted = len(lift)
-                if stopped_in:
-                    status = "paused"
-            except TattotronixError as exc:  # a bus error; an unreachable lift
-                status, error = "failed", exc
-            finally:
-                try:
-                    board.all_off()
-                    outputs_off = True
-                except BusError as exc:
-                    log.error("switching the PCA9685 outputs off failed: %s", exc)
-                    if error is None:
-                        status, error = "failed", exc
-        finally:
-            if stream is not None:
-                state.q = stream.q.tolist()
-            state.status = status if status != "drawing" else "failed"
-            where = {"start": "while starting the board, before any frame was sent",
-                     "lift": f"during the first lift, before frame {start}",
-                     "ramp": f"during the ramp to frame {start}",
-                     "approach": f"during the approach to frame {start}",
-                     "draw": f"while drawing, at frame {state.frame} of {prog.frames}",
-                     "stop": f"during the lift after a stop at frame {state.frame}"}
-            needle = self._needle(np.asarray(state.q, dtype=np.float64))
+                    run.stopped_in = "draw"
+                    break
+                st.send(prog.q[frame], "draw", frame, prog.row(frame))
+                state.frame, state.drawn = frame + 1, max(state.drawn, frame + 1)
+                if st.sent % save_every == 0:
+                    self._save(state, st, logs)
+            else:
+                run.status = "done"
+        if run.stopped_in and run.stopped_in != "lift":
+            run.stage = "stop"
+            lift = self._lift(st.q)
+            play(lift, "lift", interruptible=False)
+            run.lifted = len(lift)
+        if run.stopped_in:
+            run.status = "paused"
+
+    def _reason(self, run: _SessionRun, state: ArmState, stop: _StopRequests) -> str:
+        """Why the session ended where it did, and in what state it left the arm (the
+        state file's ``reason``; "" when done)."""
+        start = run.start
+        where = {"start": "while starting the board, before any frame was sent",
+                 "lift": f"during the first lift, before frame {start}",
+                 "ramp": f"during the ramp to frame {start}",
+                 "approach": f"during the approach to frame {start}",
+                 "draw": f"while drawing, at frame {state.frame} of {self.program.frames}",
+                 "stop": f"during the lift after a stop at frame {state.frame}"}
+        needle = self._needle(np.asarray(state.q, dtype=np.float64))
+        if run.status == "done":
+            return ""
+        if run.status == "paused":
             names = stop.names()
-            if status == "paused":
-                later = (f" (then {', '.join(names[1:])}: noted and ignored, so as never to"
-                         " cut a lift short)" if len(names) > 1 else "")
-                state.reason = (
-                    f"{names[0]} {where[stopped_in]}: "
-                    + ("the lift to the clearance height completed" if lifted else
+            later = (f" (then {', '.join(names[1:])}: noted and ignored, so as never to"
+                     " cut a lift short)" if len(names) > 1 else "")
+            return (f"{names[0]} {where[run.stopped_in]}: "
+                    + ("the lift to the clearance height completed" if run.lifted else
                        "no lift was needed")
                     + f"; the last pose sent has the needle tip at {needle}; every output "
                     f"is off{later}")
-            elif status == "done":
-                state.reason = ""
-            else:
-                state.reason = (
-                    f"{error or 'an unexpected error'}. Stopped {where[stage]}; the last pose "
-                    f"fully sent has the needle tip at {needle}; "
-                    + {"start": "nothing was sent", "lift": "the first lift did not complete",
-                       "stop": "the lift did not complete"}.get(stage, "no lift was tried")
-                    + "; switching every output off "
-                    + ("went through" if outputs_off else
-                       "failed too: the servos may still hold that pose"))
-            try:
-                logs.close()
-            finally:
-                state.save(self.state_file)
-                stop.restore()
-        wall = time.perf_counter() - t0
+        return (f"{run.error or 'an unexpected error'}. Stopped {where[run.stage]}; the last "
+                f"pose fully sent has the needle tip at {needle}; "
+                + {"start": "nothing was sent", "lift": "the first lift did not complete",
+                   "stop": "the lift did not complete"}.get(run.stage, "no lift was tried")
+                + "; switching every output off "
+                + ("went through" if run.outputs_off else
+                   "failed too: the servos may still hold that pose"))
+
+    def _summary(self, run: _SessionRun, state: ArmState, begin: _Start, wall_s: float,
+                 stop: _StopRequests) -> JsonDict:
+        """The session's summary when done.
+
+        Raises:
+            Paused: a stop request ended it (with the needle lifted).
+            TattotronixError: it failed (the state file says where, for ``resume=true``).
+        """
+        prog, stream = self.program, run.stream
         summary: JsonDict = {
-            "name": self.name, "backend": "arm", "dry_run": self.dry_run, "status": status,
-            "reason": state.reason, "frames": prog.frames, "start_frame": start,
-            "stopped_at_frame": state.frame if status != "done" else prog.frames,
+            "name": self.name, "backend": "arm", "dry_run": self.dry_run,
+            "status": run.status, "reason": state.reason, "frames": prog.frames,
+            "start_frame": run.start,
+            "stopped_at_frame": state.frame if run.status != "done" else prog.frames,
             "after_crash": begin.crashed,
             "frames_sent": stream.sent if stream else 0,
             "channel_writes": stream.writes if stream else 0,
-            "session": session_no, "wall_s": wall, "program": digest}
-        if status == "paused":
+            "session": state.session, "wall_s": wall_s, "program": state.program}
+        if run.status == "paused":
             raise Paused(f"{state.reason}. Continue with resume=true", stop.signals[0])
-        if status == "failed":
+        if run.status == "failed":
             raise TattotronixError(
                 f"{state.reason}. The state is saved in {self.state_file}: fix the cause, "
                 "then continue with resume=true (it lifts the needle first)")

@@ -92,7 +92,7 @@ _NUMERIC = "biuf"
 
 
 def make_provenance(cfg: object, inputs: Mapping[str, str | Path],
-                    code: str | None = None) -> str:
+                    code: str | None = None, roots: Sequence[str | Path] = ()) -> str:
     """The provenance JSON of an artifact made from ``cfg`` and the files ``inputs``.
 
     Args:
@@ -100,9 +100,11 @@ def make_provenance(cfg: object, inputs: Mapping[str, str | Path],
             a config dataclass (:func:`tattotronix.io.provenance.plain_config`).
         inputs: role -> file read (``{"ik": ..., "urdf": ...}``); each is hashed.
         code: the code version; :func:`tattotronix.io.provenance.code_version` if None.
+        roots: the data folders the inputs were read from (an input under one is recorded
+            relative to it; :meth:`tattotronix.io.outputs.Outputs.provenance` passes them).
     """
     return provenance_json(plain_config(cfg), inputs,
-                           code_version() if code is None else code)
+                           code_version() if code is None else code, roots)
 
 
 def _check_provenance(text: str) -> str:
@@ -294,8 +296,10 @@ class _Record:
     SPEC: ClassVar[ArtifactSpec]
 
     def arrays(self) -> dict[str, Any]:
-        """The arrays to store, by key."""
-        return {f.name: getattr(self, f.name) for f in fields(self) if f.name != PROVENANCE_KEY}
+        """The arrays to store, by key: the spec's keys (a subclass's own fields, such as a
+        planned trajectory's, are not stored), else every field but the provenance."""
+        keys = self.SPEC.keys or [f.name for f in fields(self) if f.name != PROVENANCE_KEY]
+        return {k: getattr(self, k) for k in keys}
 
     def save(self, file: str | Path, provenance: str) -> None:
         """Write the artifact to ``file`` (an ``.npz`` path; e.g. ``Outputs.tmp_path``)

@@ -230,6 +230,16 @@ class Outputs:
             raise StageInputMissing(path, stage, self.rerun_command(stage), also)
         return path
 
+    def provenance(self, cfg: object, inputs: Mapping[str, str | Path]) -> str:
+        """The provenance of a file this run writes from ``cfg`` and the files ``inputs``
+        (:func:`tattotronix.io.artifacts.make_provenance`): an input under the data folder
+        or a folder this run writes in is recorded by its path there (``ik/emblem.npz``),
+        so the same files written elsewhere (a plan the Python API saved) record the same
+        bytes."""
+        from tattotronix.io.artifacts import make_provenance
+
+        return make_provenance(cfg, inputs, roots=(self.data, self.root, self.shared_root))
+
     def _tmp(self, target: Path) -> Path:
         """Register a temporary next to ``target`` (same suffix, for writers that check it)."""
         missing = [p for p in (target.parent, *target.parent.parents) if not p.exists()]

@@ -24,7 +24,7 @@ from tattotronix.io.npz import READ_ERRORS
 
 __all__ = ["CODE_VERSION_ENV", "PROVENANCE_KEY", "code_version", "config_sha256", "file_sha256",
            "fixed_code_version", "only_keys", "plain_config", "provenance_json", "recorded_keys",
-           "stamp_version"]
+           "script_version", "stamp_version"]
 
 _ROOT = Path(__file__).resolve().parents[2]
 
@@ -84,6 +84,13 @@ def stamp_version(stamp: Path) -> str | None:
         return version_of_stamp(stamp.read_bytes())
     except FileNotFoundError:
         return None
+
+
+def script_version(script: Path, root: Path | None = None) -> str:
+    """The code version a run of the project's script ``script`` records (:func:`code_version`
+    with that script as the entry point): what its stamp in ``<paths.data>/code/`` stands for
+    while the stamp is current."""
+    return _entry_version((root or _ROOT).resolve(), script.resolve(), None)
 
 
 @functools.cache
@@ -205,8 +212,19 @@ def _fill(into: dict[str, Any], more: Mapping[str, Any]) -> None:
             _fill(into[key], value)
 
 
+def _label(file: str | Path, roots: Sequence[str | Path]) -> str:
+    """``file`` relative to the first of ``roots`` it lies under (``/``-separated), else
+    as given."""
+    path = Path(file).resolve()
+    for root in roots:
+        base = Path(root).resolve()
+        if path.is_relative_to(base):
+            return path.relative_to(base).as_posix()
+    return str(file)
+
+
 def provenance_json(config: Mapping[str, object], inputs: Mapping[str, str | Path],
-                    code_version: str) -> str:
+                    code_version: str, roots: Sequence[str | Path] = ()) -> str:
     """The provenance string: the resolved config and its hash (:func:`config_sha256`),
     the code version, input file hashes.
 
@@ -220,6 +238,9 @@ def provenance_json(config: Mapping[str, object], inputs: Mapping[str, str | Pat
             resolve=True, enum_to_str=True)``).
         inputs: role -> file (``{"ik": ..., "urdf": ...}``).
         code_version: :func:`code_version`.
+        roots: the data folders the inputs were read from: an input under one is recorded
+            by its path relative to it (``ik/emblem.npz``), so that the same files in
+            another folder (a plan the Python API saved) record the same bytes.
     """
     keys = _RECORDED.get()
     if keys is not None:
@@ -233,5 +254,6 @@ def provenance_json(config: Mapping[str, object], inputs: Mapping[str, str | Pat
         "config": dict(config),
         "config_sha256": config_sha256(config),
         "code_version": code_version,
-        "inputs": {k: {"path": str(p), "sha256": file_sha256(p)} for k, p in inputs.items()},
+        "inputs": {k: {"path": _label(p, roots), "sha256": file_sha256(p)}
+                   for k, p in inputs.items()},
     }, sort_keys=True)

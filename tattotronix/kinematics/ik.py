@@ -121,13 +121,21 @@ Progress = Callable[[int, int], None]
 
 class IkOptions(TypedDict, total=False):
     """Solver settings of :func:`solve_path` (besides the targets and the seed), as the
-    ``ik`` config group gives them (``tattotronix.app.pipeline.ik_settings``)."""
+    ``ik`` config group gives them (:func:`ik_options`)."""
 
     needle_axis: ArrayLike
     dls_lambda: float
     max_iter: int
     tol: float
     anchor_spacing_m: float
+
+
+def ik_options(ik: IkConfig) -> IkOptions:
+    """The solver's settings from the ``ik`` config group (the seed apart: a caller seeds
+    from where it is)."""
+    return {"needle_axis": list(ik.needle_axis), "dls_lambda": float(ik.dls_lambda),
+            "max_iter": int(ik.max_iter), "tol": float(ik.tol),
+            "anchor_spacing_m": float(ik.anchor_spacing_m)}
 
 _DEFAULTS = IkConfig()  # conf/ik: the original's settings (docs/original.md, "3.2 The solver")
 DLS_LAMBDA = _DEFAULTS.dls_lambda
@@ -588,10 +596,39 @@ def solve_path(
     """
     t0 = time.perf_counter()
     _check_settings(dls_lambda, max_iter, tol, anchor_spacing_m)
+    x, z_const, z_rows, q0 = _path_inputs(targets_m, needle_axis, seed, chain.n)
+    ps = _PathSolve.start(chain, x, z_rows, z_const, dls_lambda, max_iter, tol)
+    n_pts = len(x)
+    stats: dict[str, Any] = {"method": "batched", "points": n_pts}
+    if n_pts:
+        same_tol = branch_tol_rad / 50  # two solves of one point agreeing: the same solution
+        # 1-2. anchors: from the seed, then each from its predecessor until settled
+        anchors, s = _anchors(x, anchor_spacing_m)
+        qa, ca, rounds_a = ps.solve_anchors(anchors, q0, same_tol)
+        stats.update(anchors=len(anchors), anchor_rounds=rounds_a)
+        if progress is not None:
+            progress(len(anchors), n_pts)
+        # 3. everything else from interpolated seeds, at once
+        ps.solve_between(anchors, s, qa, ca, progress)
+        # 4. off-branch or failed points again, from their predecessors, until settled
+        rounds_f, resolved = ps.settle_branches(s, branch_tol_rad, anchor_spacing_m, same_tol)
+        stats.update(fix_rounds=rounds_f, resolved=resolved, point_iterations=ps.work)
+        if progress is not None:
+            progress(n_pts, n_pts)
+    return ps.result(stats, time.perf_counter() - t0)
+
+
+def _path_inputs(targets_m: ArrayLike, needle_axis: ArrayLike, seed: ArrayLike, n: int
+                 ) -> tuple[Array, tuple[float, ...] | None, Array | None, Array]:
+    """:func:`solve_path`'s inputs checked: the (N, 3) targets, the needle axis (one for
+    every point, or (3, N) rows), and the (n, 1) seed.
+
+    Raises:
+        TattotronixError: as :func:`solve_path`.
+    """
     x = np.asarray(targets_m, dtype=float)
     if x.ndim != 2 or x.shape[1] != 3 or not np.all(np.isfinite(x)):
         raise TattotronixError(f"IK targets must be (N, 3) finite positions in m, got {x.shape}")
-    n_pts, n = len(x), chain.n
     axis = _unit(needle_axis, "needle_axis")
     z_const: tuple[float, ...] | None = None
     z_rows: Array | None = None
@@ -605,25 +642,49 @@ def solve_path(
     if q0.shape != (n, 1) or not np.all(np.isfinite(q0)):
         raise TattotronixError(f"the IK seed must be {n} finite joint angles (rad), got "
                                f"{np.ravel(seed).tolist()}")
-    p_rows = np.ascontiguousarray(x.T)
-    q = np.empty((n, n_pts))
-    conv = np.zeros(n_pts, bool)
-    res = np.zeros(n_pts)
-    iters = np.zeros(n_pts, np.int64)
-    at_limit = np.zeros((n, n_pts), bool)
-    stats: dict[str, Any] = {"method": "batched", "points": n_pts}
-    same_tol = branch_tol_rad / 50  # two solves of one point agreeing: the same solution
-    if n_pts == 0:
-        return IkResult(q=q.T, converged=conv, residual=res, iterations=iters,
-                        reason=np.full(0, "", "<U11"), at_limit=at_limit.T,
-                        solve_s=time.perf_counter() - t0, joint_names=chain.joint_names,
-                        stats=stats)
-    work = [0]
+    return x, z_const, z_rows, q0
 
-    def solve(idx: NDArray[np.intp], seeds: Array,
+
+@dataclass
+class _PathSolve:
+    """A whole-path solve under way (:func:`solve_path`'s parts share it): the targets and
+    settings, and every point's solution so far, as (n, N) and (N,) rows.
+
+    Attributes:
+        work: point-iterations spent so far.
+    """
+
+    chain: Chain
+    p_rows: Array
+    z_rows: Array | None
+    z_const: tuple[float, ...] | None
+    dls_lambda: float
+    max_iter: int
+    tol: float
+    q: Array
+    conv: NDArray[np.bool_]
+    res: Array
+    iters: NDArray[np.int64]
+    at_limit: NDArray[np.bool_]
+    work: int = 0
+
+    @classmethod
+    def start(cls, chain: Chain, x: Array, z_rows: Array | None,
+              z_const: tuple[float, ...] | None, dls_lambda: float, max_iter: int,
+              tol: float) -> _PathSolve:
+        """No point solved yet."""
+        n_pts, n = len(x), chain.n
+        return cls(chain, np.ascontiguousarray(x.T), z_rows, z_const, dls_lambda, max_iter,
+                   tol, q=np.empty((n, n_pts)), conv=np.zeros(n_pts, bool),
+                   res=np.zeros(n_pts), iters=np.zeros(n_pts, np.int64),
+                   at_limit=np.zeros((n, n_pts), bool))
+
+    def solve(self, idx: NDArray[np.intp], seeds: Array,
               report: Callable[[int], None] | None = None) -> _Batch:
+        """Solve the points ``idx`` from ``seeds`` ((n, len(idx))) in lockstep, in blocks
+        (which bound the memory on huge paths); nothing is stored."""
         parts = []
-        for lo in range(0, len(idx), BLOCK):  # blocks bound the memory on huge paths
+        for lo in range(0, len(idx), BLOCK):
             k = idx[lo:lo + BLOCK]
             offset = lo
 
@@ -632,8 +693,9 @@ def solve_path(
                     report(offset + done)
 
             parts.append(_solve_lockstep(
-                chain, p_rows[:, k], None if z_rows is None else z_rows[:, k], z_const,
-                seeds[:, lo:lo + BLOCK], dls_lambda=dls_lambda, max_iter=max_iter, tol=tol,
+                self.chain, self.p_rows[:, k], None if self.z_rows is None else
+                self.z_rows[:, k], self.z_const, seeds[:, lo:lo + BLOCK],
+                dls_lambda=self.dls_lambda, max_iter=self.max_iter, tol=self.tol,
                 progress=sub))
         b = parts[0] if len(parts) == 1 else _Batch(
             q=np.concatenate([p.q for p in parts], axis=1),
@@ -642,64 +704,79 @@ def solve_path(
             iterations=np.concatenate([p.iterations for p in parts]),
             at_limit=np.concatenate([p.at_limit for p in parts], axis=1),
             point_iterations=sum(p.point_iterations for p in parts))
-        work[0] += b.point_iterations
+        self.work += b.point_iterations
         return b
 
-    # 1-2. anchors: from the seed, then each from its predecessor until settled
-    anchors, s = _anchors(x, anchor_spacing_m)
-    m = len(anchors)
-    b0 = solve(anchors, np.repeat(q0, m, axis=1))
-    qa, ca, ra, ia, la = b0.q, b0.converged, b0.residual, b0.iterations, b0.at_limit
+    def _store(self, idx: NDArray[np.intp], q: Array, conv: NDArray[np.bool_], res: Array,
+               iters: NDArray[np.int64], at_limit: NDArray[np.bool_]) -> None:
+        self.q[:, idx], self.conv[idx], self.res[idx] = q, conv, res
+        self.iters[idx], self.at_limit[:, idx] = iters, at_limit
 
-    def solve_anchors(k: NDArray[np.intp], seeds: Array) -> _Batch:
-        return solve(anchors[k], seeds)
+    def solve_anchors(self, anchors: NDArray[np.intp], q0: Array, same_tol: float
+                      ) -> tuple[Array, NDArray[np.bool_], int]:
+        """Solve the anchors from the seed ``q0``, then each again from its predecessor
+        until they settle; store them. Their (n, m) solutions, convergence and rounds."""
+        m = len(anchors)
+        b0 = self.solve(anchors, np.repeat(q0, m, axis=1))
+        qa, ca, ra, ia, la = b0.q, b0.converged, b0.residual, b0.iterations, b0.at_limit
 
-    rounds_a, _ = _settle(solve_anchors, qa, ca, ra, ia, la, np.arange(1, m),
-                          lambda k: np.ones(len(k), bool), same_tol)
-    # the first anchor (point 0) was solved from the seed in round 0: that is its answer
-    q[:, anchors], conv[anchors], res[anchors] = qa, ca, ra
-    iters[anchors], at_limit[:, anchors] = ia, la
-    stats.update(anchors=m, anchor_rounds=rounds_a)
-    if progress is not None:
-        progress(m, n_pts)
+        def solve_anchors(k: NDArray[np.intp], seeds: Array) -> _Batch:
+            return self.solve(anchors[k], seeds)
 
-    # 3. everything else from interpolated seeds, at once
-    rest = np.setdiff1d(np.arange(n_pts), anchors, assume_unique=True)
-    if len(rest):
+        rounds, _ = _settle(solve_anchors, qa, ca, ra, ia, la, np.arange(1, m),
+                            lambda k: np.ones(len(k), bool), same_tol)
+        # the first anchor (point 0) was solved from the seed in round 0: that is its answer
+        self._store(anchors, qa, ca, ra, ia, la)
+        return qa, ca, rounds
+
+    def solve_between(self, anchors: NDArray[np.intp], s: Array, qa: Array,
+                      ca: NDArray[np.bool_], progress: Progress | None) -> None:
+        """Solve every point but the anchors at once, each from the anchors' solutions
+        interpolated along the path (``s``, its arc length); store them."""
+        n_pts, m = len(self.conv), len(anchors)
+        rest = np.setdiff1d(np.arange(n_pts), anchors, assume_unique=True)
+        if not len(rest):
+            return
         seeds = _interpolated_seeds(anchors, s, qa, ca, n_pts)[:, rest]
 
         def report(done: int) -> None:
             if progress is not None:
                 progress(m + done, n_pts)
 
-        b = solve(rest, seeds, report)
-        q[:, rest], conv[rest], res[rest] = b.q, b.converged, b.residual
-        iters[rest], at_limit[:, rest] = b.iterations, b.at_limit
+        b = self.solve(rest, seeds, report)
+        self._store(rest, b.q, b.converged, b.residual, b.iterations, b.at_limit)
 
-    # 4. off-branch or failed points again, from their predecessors, until settled
-    def off_branch(j: NDArray[np.intp], recheck_far: bool = False) -> NDArray[np.bool_]:
-        step = s[j] - s[j - 1]
-        limit = branch_tol_rad * np.maximum(1.0, step / (0.1 * anchor_spacing_m))
-        jump = np.abs(q[:, j] - q[:, j - 1]).max(axis=0) > limit
-        near = step < anchor_spacing_m
-        # after a long step the joint step says nothing: re-solve when the point before
-        # it has changed (a settled anchor pair otherwise)
-        return conv[j - 1] & (~conv[j] | (jump & near) | (recheck_far & ~near))
+    def settle_branches(self, s: Array, branch_tol_rad: float, anchor_spacing_m: float,
+                        same_tol: float) -> tuple[int, int]:
+        """Solve the off-branch or failed points again from their predecessors until
+        settled (:func:`_settle`); (rounds, points re-solved)."""
+        q, conv = self.q, self.conv
 
-    cand = np.arange(1, n_pts)
-    todo = cand[off_branch(cand)]
-    rounds_f, resolved = _settle(solve, q, conv, res, iters, at_limit, todo,
-                                 lambda j: off_branch(j, recheck_far=True), same_tol)
-    stats.update(fix_rounds=rounds_f, resolved=resolved, point_iterations=work[0])
-    reason = np.full(n_pts, "", dtype="<U11")
-    failed = ~conv
-    reason[failed] = np.where(at_limit[:, failed].any(axis=0), JOINT_LIMIT, UNREACHABLE)
-    if progress is not None:
-        progress(n_pts, n_pts)
-    return IkResult(q=np.ascontiguousarray(q.T), converged=conv, residual=res, iterations=iters,
-                    reason=reason, at_limit=np.ascontiguousarray(at_limit.T),
-                    solve_s=time.perf_counter() - t0, joint_names=chain.joint_names,
-                    stats=stats)
+        def off_branch(j: NDArray[np.intp], recheck_far: bool = False) -> NDArray[np.bool_]:
+            step = s[j] - s[j - 1]
+            limit = branch_tol_rad * np.maximum(1.0, step / (0.1 * anchor_spacing_m))
+            jump = np.abs(q[:, j] - q[:, j - 1]).max(axis=0) > limit
+            near = step < anchor_spacing_m
+            # after a long step the joint step says nothing: re-solve when the point before
+            # it has changed (a settled anchor pair otherwise)
+            return conv[j - 1] & (~conv[j] | (jump & near) | (recheck_far & ~near))
+
+        cand = np.arange(1, len(conv))
+        todo = cand[off_branch(cand)]
+        return _settle(self.solve, q, conv, self.res, self.iters, self.at_limit, todo,
+                       lambda j: off_branch(j, recheck_far=True), same_tol)
+
+    def result(self, stats: dict[str, Any], solve_s: float) -> IkResult:
+        """The solutions, each failure named (``joint limit`` or ``unreachable``)."""
+        conv = self.conv
+        reason = np.full(len(conv), "", dtype="<U11")
+        failed = ~conv
+        reason[failed] = np.where(self.at_limit[:, failed].any(axis=0), JOINT_LIMIT,
+                                  UNREACHABLE)
+        return IkResult(q=np.ascontiguousarray(self.q.T), converged=conv, residual=self.res,
+                        iterations=self.iters, reason=reason,
+                        at_limit=np.ascontiguousarray(self.at_limit.T), solve_s=solve_s,
+                        joint_names=self.chain.joint_names, stats=stats)
 
 
 # --- task Jacobian and conditioning --------------------------------------------------------

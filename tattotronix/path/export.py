@@ -41,7 +41,7 @@ from tattotronix.path.order import Order
 from tattotronix.path.path3d import Path3D
 from tattotronix.path.plan import Toolpath
 from tattotronix.path.polyline import oriented
-from tattotronix.path.strokes import Drawing, StrokeKind
+from tattotronix.path.strokes import StrokeKind, StrokeSet
 
 __all__ = ["DRAG_LAYER", "LAYERS", "LAYER_OF_KIND", "TRAVEL_LAYER", "Layer", "panel_extent_mm",
            "path_svg", "stroke_directions", "stroke_starts", "toolpath_svg"]
@@ -96,7 +96,7 @@ def panel_extent_mm(panel_size_mm: tuple[float, float]) -> tuple[float, float, f
     return (-pw / 2, pw / 2, -ph / 2, ph / 2)
 
 
-def _oriented_vertex(drawing: Drawing, order: Order, nth: int) -> NDArray[np.float64]:
+def _oriented_vertex(drawing: StrokeSet, order: Order, nth: int) -> NDArray[np.float64]:
     """(n, 2) each drawn stroke's ``nth`` vertex as the planner orients it (its last, for
     a stroke with fewer), in drawing order."""
     seq = np.asarray(order.sequence, dtype=np.intp)
@@ -112,14 +112,14 @@ def _oriented_vertex(drawing: Drawing, order: Order, nth: int) -> NDArray[np.flo
     return out
 
 
-def stroke_starts(drawing: Drawing, order: Order) -> NDArray[np.float64]:
+def stroke_starts(drawing: StrokeSet, order: Order) -> NDArray[np.float64]:
     """(n, 2) where each drawn stroke starts, in drawing order, panel mm: its vertex at the
     seam (a loop) or its first vertex as drawn (reversed or not), as the planner orients it
     (:func:`~tattotronix.path.polyline.oriented`)."""
     return _oriented_vertex(drawing, order, 0)
 
 
-def stroke_directions(drawing: Drawing, order: Order) -> NDArray[np.float64]:
+def stroke_directions(drawing: StrokeSet, order: Order) -> NDArray[np.float64]:
     """(n, 2) the unit direction of each drawn stroke's first segment (zero for a single
     point): a round turn (:mod:`tattotronix.path.turns`) trims a hatch run along it, so the
     run then starts on that line, past :func:`stroke_starts`."""

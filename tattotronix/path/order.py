@@ -37,7 +37,7 @@ from tattotronix.path.costs import TransitionCosts, can_drag
 from tattotronix.path.laps import Laps
 from tattotronix.path.params import ToolpathParams
 from tattotronix.path.polyline import oriented, resample_many
-from tattotronix.path.strokes import Drawing
+from tattotronix.path.strokes import StrokeSet
 
 __all__ = ["Order", "OrderResult", "optimise_order", "original_order"]
 
@@ -70,13 +70,13 @@ class Order:
     reverse: NDArray[np.bool_]
     seam: NDArray[np.intp]
 
-    def points(self, drawing: Drawing, step_mm: float) -> list[NDArray[np.float64]]:
+    def points(self, drawing: StrokeSet, step_mm: float) -> list[NDArray[np.float64]]:
         """Each stroke resampled at ``step_mm``, in drawing order, oriented as ordered."""
         pts, bounds = self.resampled(drawing, step_mm)
         return [pts[bounds[k] : bounds[k + 1]] for k in range(len(bounds) - 1)]
 
     def resampled(
-        self, drawing: Drawing, step_mm: float,
+        self, drawing: StrokeSet, step_mm: float,
         canonical: tuple[NDArray[np.float64], NDArray[np.intp]] | None = None,
     ) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
         """:meth:`points`, laid out one stroke after the other: ``(pts, bounds)``.
@@ -141,13 +141,13 @@ class OrderResult:
     elapsed_s: float
 
 
-def original_order(drawing: Drawing) -> Order:
+def original_order(drawing: StrokeSet) -> Order:
     """The original's order: the drawing's own (regions left to right, outline, holes, fill)."""
     n = len(drawing.strokes)
     return Order(np.arange(n), np.zeros(n, bool), np.zeros(n, np.intp))
 
 
-def _endpoints(drawing: Drawing, seam: NDArray[np.intp]) -> NDArray[np.float64]:
+def _endpoints(drawing: StrokeSet, seam: NDArray[np.intp]) -> NDArray[np.float64]:
     """(2n, 2): row 2i is stroke i's start, row 2i + 1 its end, for the given seams."""
     vb, closed = drawing.bounds, drawing.closed
     first, last = vb[:-1], vb[1:] - 1
@@ -174,7 +174,7 @@ def _transitions(costs: TransitionCosts, seq: NDArray[np.intp], rev: NDArray[np.
 class _Precedence:
     """The ``outlines_first`` rule: a region's fill rows come after all its outlines."""
 
-    def __init__(self, drawing: Drawing, enabled: bool):
+    def __init__(self, drawing: StrokeSet, enabled: bool):
         self.enabled = enabled
         self.outline = ~drawing.is_fill
         self.region = drawing.region_of
@@ -510,7 +510,7 @@ _SeamCosts = dict[tuple[int, float, float], NDArray[np.float64]]
 
 
 def _ring_costs(
-    drawing: Drawing, mask: InkMask, params: ToolpathParams, costs: TransitionCosts,
+    drawing: StrokeSet, mask: InkMask, params: ToolpathParams, costs: TransitionCosts,
     wanted: list[tuple[int, float, float]], cache: _SeamCosts,
 ) -> None:
     """Fill ``cache[(s, x, y)]``: the cost between the point (x, y) and every vertex of
@@ -538,7 +538,7 @@ def _ring_costs(
 
 
 def _optimise_seams(
-    drawing: Drawing, seq: NDArray[np.intp], rev: NDArray[np.bool_], seam: NDArray[np.intp],
+    drawing: StrokeSet, seq: NDArray[np.intp], rev: NDArray[np.bool_], seam: NDArray[np.intp],
     mask: InkMask, params: ToolpathParams, costs: TransitionCosts,
     cache: _SeamCosts | None = None,
 ) -> NDArray[np.intp]:
@@ -594,7 +594,7 @@ def _optimise_seams(
 
 
 def optimise_order(
-    drawing: Drawing, mask: InkMask, params: ToolpathParams, max_passes: int = MAX_PASSES,
+    drawing: StrokeSet, mask: InkMask, params: ToolpathParams, max_passes: int = MAX_PASSES,
     rounds: int = 3, laps: Laps | None = None,
 ) -> OrderResult:
     """Order the strokes to cut the time between them (see the module docstring).

@@ -104,7 +104,7 @@ class ToolpathParams:
             raise TattotronixError(f"robot.panel.size must be > 0 (got {self.panel_size_mm} mm)")
 
     @classmethod
-    def from_config(cls, toolpath: ToolpathConfig, mask: MaskConfig,
+    def from_settings(cls, toolpath: ToolpathConfig, mask: MaskConfig,
                     panel: PanelConfig) -> ToolpathParams:
         """Build from the ``toolpath`` and ``mask`` settings and ``robot.panel``.
 

@@ -38,7 +38,7 @@ from tattotronix.path.params import ToolpathParams
 from tattotronix.path.path3d import Path3D, build_path_flat
 from tattotronix.path.polyline import resample_many
 from tattotronix.path.regions import find_regions
-from tattotronix.path.strokes import Drawing, StrokeKind, regions_drawing
+from tattotronix.path.strokes import StrokeKind, StrokeSet, regions_drawing
 from tattotronix.path.timing import PathMetrics, measure, segment_lengths, timestamps
 
 __all__ = ["MAX_BLEED_SHARE", "MAX_FILL_CELLS", "MAX_POINTS", "MAX_STROKES", "Toolpath",
@@ -122,7 +122,7 @@ def check_order_budget(strokes: int, params: ToolpathParams) -> None:
             "smaller or simpler artwork")
 
 
-def check_points_budget(drawing: Drawing, params: ToolpathParams) -> None:
+def check_points_budget(drawing: StrokeSet, params: ToolpathParams) -> None:
     """Refuse resampling the strokes into more than :data:`MAX_POINTS` points.
 
     Raises:
@@ -138,7 +138,7 @@ def check_points_budget(drawing: Drawing, params: ToolpathParams) -> None:
             "toolpath.step_mm")
 
 
-def _stroke_lengths(drawing: Drawing) -> NDArray[np.float64]:
+def _stroke_lengths(drawing: StrokeSet) -> NDArray[np.float64]:
     """(n,) chord length of each stroke's vertices, mm (summed per stroke as ``np.sum``)."""
     v, vb = drawing.vertices, drawing.bounds
     seg = np.linalg.norm(np.diff(v, axis=0), axis=1)
@@ -168,7 +168,7 @@ class Toolpath:
             ``metrics``); for the benchmark and the logs, never part of the plan.
     """
 
-    drawing: Drawing
+    drawing: StrokeSet
     order: Order
     path: Path3D
     t_s: NDArray[np.float64]

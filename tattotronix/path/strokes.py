@@ -30,7 +30,7 @@ from tattotronix.path.polyline import (
 )
 from tattotronix.path.regions import Region, find_regions
 
-__all__ = ["FILL_KINDS", "Drawing", "Stroke", "StrokeKind", "assemble_drawing", "build_drawing",
+__all__ = ["FILL_KINDS", "StrokeSet", "Stroke", "StrokeKind", "assemble_drawing", "build_drawing",
            "compensated_drawing", "regions_drawing"]
 
 
@@ -96,7 +96,7 @@ class Stroke:
 
 
 @dataclass(frozen=True)
-class Drawing:
+class StrokeSet:
     """Every stroke of a mask, in the original's order, with the region figures.
 
     Attributes:
@@ -187,7 +187,7 @@ def _loops_mm(mask: InkMask, loops: list[NDArray[np.int32]]
 
 
 def build_drawing(mask: InkMask, params: ToolpathParams,
-                  vector: VectorLines | None = None) -> Drawing:
+                  vector: VectorLines | None = None) -> StrokeSet:
     """Trace, smooth and fill every region of the mask (:func:`regions_drawing`).
 
     Args:
@@ -205,7 +205,7 @@ def build_drawing(mask: InkMask, params: ToolpathParams,
 
 
 def regions_drawing(mask: InkMask, labels: NDArray[np.int32], regions: list[Region],
-                    params: ToolpathParams, vector: VectorLines | None = None) -> Drawing:
+                    params: ToolpathParams, vector: VectorLines | None = None) -> StrokeSet:
     """The strokes of traced regions (:func:`find_regions`): compensated for the needle's
     width (:func:`compensated_drawing`) when ``params.compensate``, else the original's
     outlines and hatch (:func:`assemble_drawing`)."""
@@ -216,7 +216,7 @@ def regions_drawing(mask: InkMask, labels: NDArray[np.int32], regions: list[Regi
     return assemble_drawing(mask, regions, fill)
 
 
-def assemble_drawing(mask: InkMask, regions: list[Region], fill: Hatch) -> Drawing:
+def assemble_drawing(mask: InkMask, regions: list[Region], fill: Hatch) -> StrokeSet:
     """The strokes of traced regions (:func:`find_regions`) and their hatch
     (:func:`hatch`), in the original's order (what :func:`build_drawing` returns)."""
     region_labels = np.array([r.label for r in regions], dtype=np.int32)
@@ -242,7 +242,7 @@ def assemble_drawing(mask: InkMask, regions: list[Region], fill: Hatch) -> Drawi
             strokes.append(Stroke(loop_kind[k], i, loop_v[lb[k] : lb[k + 1]]))
             k += 1
         strokes.extend(Stroke(StrokeKind.FILL, i, fill_ab[j]) for j in range(lo[i], hi[i]))
-    return Drawing(
+    return StrokeSet(
         strokes=tuple(strokes),
         regions=len(regions),
         holes=sum(r.hole_count for r in regions),
@@ -251,7 +251,7 @@ def assemble_drawing(mask: InkMask, regions: list[Region], fill: Hatch) -> Drawi
 
 
 def compensated_drawing(mask: InkMask, labels: NDArray[np.int32], regions: list[Region],
-                        params: ToolpathParams, vector: VectorLines | None = None) -> Drawing:
+                        params: ToolpathParams, vector: VectorLines | None = None) -> StrokeSet:
     """The strokes of the regions for a needle of finite width (:mod:`tattotronix.path.inset`):
     per region its inset's outer and hole outlines, its centreline strokes, then its fill
     (hatch runs in the fill area, a needle inside the inset's edge, or concentric rings in
@@ -286,7 +286,7 @@ def compensated_drawing(mask: InkMask, labels: NDArray[np.int32], regions: list[
         strokes.extend(Stroke(StrokeKind.RING, i, lp) for lp in rings.get(region.label, []))
         lo, hi = np.searchsorted(fill.label, [region.label, region.label + 1])
         strokes.extend(Stroke(StrokeKind.FILL, i, fill_ab[j]) for j in range(lo, hi))
-    return Drawing(
+    return StrokeSet(
         strokes=tuple(strokes),
         regions=len(regions),
         holes=sum(r.hole_count for r in regions),

@@ -42,7 +42,7 @@ class PlantSettings:
     tip_frame: str
 
     @classmethod
-    def from_config(cls, plant: PlantConfig, gravity: float, tip_frame: str) -> PlantSettings:
+    def from_settings(cls, plant: PlantConfig, gravity: float, tip_frame: str) -> PlantSettings:
         """From the ``plant`` settings and the robot description's gravity and tip."""
         s = cls(dt_s=float(plant.dt_s), damping=float(plant.damping),
                 joint_limits=bool(plant.joint_limits), contacts=bool(plant.contacts),

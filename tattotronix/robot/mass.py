@@ -18,15 +18,13 @@ Method (the original's: docs/original.md, "7 Mass-properties method"):
 
 Everything is SI inside: m, kg, kg m^2. Inertia is about the CoM, in link axes.
 
-``python -m tattotronix.robot.mass --cad-dir DIR [--write]`` integrates the meshes and,
-with ``--write``, rewrites ``conf/robot/inertials/printed.yaml``.
+``python -m tattotronix.devtools.tables mass --cad-dir DIR [--write]`` integrates the
+meshes and, with ``--write``, rewrites ``conf/robot/inertials/printed.yaml``.
 """
 
 from __future__ import annotations
 
-import argparse
 import hashlib
-import sys
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,7 +32,6 @@ from typing import Any
 
 import numpy as np
 
-from tattotronix.config.params import PROJECT_ROOT
 from tattotronix.config.schema import JointConfig, RobotConfig, Tool
 from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
@@ -50,7 +47,6 @@ __all__ = [
     "inertia_problems",
     "link_names",
     "link_properties",
-    "main",
     "mass_report",
     "mesh_properties",
     "mesh_sha256",
@@ -565,47 +561,3 @@ def mass_report(table: Mapping[str, MassProperties], robot_cfg: RobotConfig) -> 
     if all(p.volume_m3 is not None for p in table.values()):
         totals["volume_cm3"] = 1e6 * sum(float(p.volume_m3 or 0.0) for p in table.values())
     return {"links": links, "totals": totals}
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line: integrate the meshes; ``--write`` rewrites the committed table."""
-    from tattotronix.config.params import compose_settings
-    from tattotronix.errors import ConfigError
-
-    ap = argparse.ArgumentParser(
-        prog="python -m tattotronix.robot.mass",
-        description="Integrate the per-link CAD meshes into the printed inertial table.",
-    )
-    ap.add_argument("--cad-dir", required=True, help="folder of <link>.stl meshes (cm)")
-    ap.add_argument(
-        "--write", action="store_true", help=f"rewrite {INERTIALS_FILE} with the result"
-    )
-    ap.add_argument("overrides", nargs="*", help="Hydra overrides (e.g. robot.mesh_scale=0.01)")
-    args = ap.parse_args(argv)
-    try:
-        cad = Path(args.cad_dir).expanduser().resolve()
-        cfg = compose_settings([*args.overrides, f"robot.cad_dir={cad}"])
-        table = printed_table(cfg.robot)
-        text = table_yaml(table)
-    except (TattotronixError, ConfigError) as exc:
-        print(f"mass: error: {exc}", file=sys.stderr)
-        return 2
-    report: dict[str, Any] = mass_report(table, cfg.robot)  # read back: JSON values
-    for link, row in report["links"].items():
-        print(
-            f"{link:16s} V {row['volume_cm3']:8.3f} cm3  shell {row['shell_g']:7.2f} g  "
-            f"servos {row['servos_g']:6.1f} g  total {row['total_g']:7.2f} g"
-        )
-    t = report["totals"]
-    print(f"arm {t['arm_kg']:.5f} kg, moving (incl. pen) {t['moving_kg']:.5f} kg")
-    if args.write:
-        target = PROJECT_ROOT / INERTIALS_FILE
-        tmp = target.with_name(f".{target.name}.tmp")
-        tmp.write_text(text, encoding="utf-8")
-        tmp.replace(target)
-        print(f"wrote {target}")
-    return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -49,10 +49,11 @@ from numpy.typing import ArrayLike, NDArray
 from tattotronix.config.schema import ActuatorOption, ActuatorStudyConfig, Config, RobotConfig
 from tattotronix.errors import TattotronixError
 from tattotronix.hardware.pca9685 import COUNTS
+from tattotronix.io.artifacts import TrajectoryRecord
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.kinematics import Chain
 from tattotronix.plotting import pyplot
-from tattotronix.trajectory import MARK, StoredTrajectory
+from tattotronix.trajectory import MARK
 
 __all__ = [
     "COMMANDS",
@@ -266,7 +267,7 @@ class Poses:
     every: int
 
 
-def study_poses(traj: StoredTrajectory, every: int) -> Poses:
+def study_poses(traj: TrajectoryRecord, every: int) -> Poses:
     """Every ``every``-th marking point (``kind == MARK``) of a trajectory, from the first.
 
     Args:
@@ -497,7 +498,7 @@ class ActuatorStudy:
 
 def actuator_study(
     chain: Chain,
-    traj: StoredTrajectory,
+    traj: TrajectoryRecord,
     decl: Declared,
     options: Iterable[ActuatorOption],
     *,
@@ -572,7 +573,7 @@ def actuator_study(
         backlash_deg=float(backlash_deg), series_every=int(series_every))
 
 
-def study_from_config(cfg: Config, chain: Chain, traj: StoredTrajectory,
+def study_from_config(cfg: Config, chain: Chain, traj: TrajectoryRecord,
                       frame_hz: float | None = None) -> ActuatorStudy:
     """The study with every setting from the settings.
 

@@ -321,7 +321,7 @@ class ClosedLoopStudy(ABC):
         }
         record.update(self.case_metrics(cfg, name, windows))
         return CaseResult(name, case, _json_dict(record), series,
-                          make_provenance(cfg, drawing.inputs))
+                          make_provenance(cfg, drawing.inputs, roots=(data,)))
 
     def write_case(self, out: Outputs, result: CaseResult) -> None:
         """Write a case's metrics (``data/metrics/<study>/<name>/<case>.json``) and series

@@ -70,7 +70,7 @@ def _chord_error(cfg: Config, name: str) -> JsonDict:
 
     source = cfg.artwork.source if cfg.artwork.source is not None else name
     mask = mask_of(cfg, source, name)
-    params = ToolpathParams.from_config(cfg.toolpath, cfg.mask, cfg.robot.panel)
+    params = ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel)
     drawing = build_drawing(mask, params)
     step = float(cfg.toolpath.step_mm)
     errs = [chord_error_mm(s.path_mm, step) for s in drawing.strokes if s.is_outline]

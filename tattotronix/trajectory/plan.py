@@ -75,10 +75,8 @@ __all__ = [
     "MoveSummary",
     "SpeedLimit",
     "SpeedRefused",
-    "StoredTrajectory",
     "Trajectory",
     "TrajectoryParams",
-    "load_trajectory",
     "plan_trajectory",
     "speed_limit",
 ]
@@ -327,19 +325,18 @@ class MoveSummary:
     reach_m: float
 
 
-@dataclass(frozen=True)
-class Trajectory:
-    """A timed joint trajectory (what ``data/trajectories/<name>.npz`` holds, and more).
+@dataclass(frozen=True, kw_only=True)
+class Trajectory(TrajectoryRecord):
+    """A timed joint trajectory as planned: the record ``data/trajectories/<name>.npz``
+    holds (:class:`~tattotronix.io.artifacts.TrajectoryRecord`, which every reader takes:
+    a plan is played, checked and compiled as it is, and :meth:`save` writes it), and how
+    it was planned.
 
     Attributes:
-        joints: joint names.
-        t: (N,) time, s, from 0, strictly increasing.
-        q: (N, n) joint angles, rad.
-        qd: (N, n) joint velocities, rad/s.
-        qdd: (N, n) joint accelerations, rad/s^2.
-        kind: (N,) int8 point kinds (0 travel, 1 mark, 2 approach).
-        marked: (N,) the segment ending at each point is ink.
-        tcp: (N, 3) FK tip of ``q``, m.
+        joints, t, q, qd, qdd, kind, marked, tcp: the record's arrays (``t`` (N,) s from
+            0, strictly increasing; ``q``, ``qd``, ``qdd`` (N, n) rad, rad/s, rad/s^2;
+            ``kind`` (N,) int8, 0 travel, 1 mark, 2 approach; ``marked`` (N,) the segment
+            ending at each point is ink; ``tcp`` (N, 3) the FK tip of ``q``, m).
         uvz_mm: (N, 3) panel coordinates, mm.
         source: (N,) index in the IK path, -1 for inserted points and planned moves.
         s: (N,) tip arc length, m.
@@ -355,14 +352,6 @@ class Trajectory:
         timings_s: wall times of the steps (densify, derivatives, time law, travel), s.
     """
 
-    joints: tuple[str, ...]
-    t: Array
-    q: Array
-    qd: Array
-    qdd: Array
-    kind: NDArray[np.int8]
-    marked: NDArray[np.bool_]
-    tcp: Array
     uvz_mm: Array
     source: NDArray[np.int64]
     s: Array
@@ -475,49 +464,11 @@ class Trajectory:
         }
         return out
 
-    def save_npz(self, file: str | Path, provenance: str) -> None:
-        """Write the trajectory npz, an interface other tools rely on (README, "The stages";
-        compressed; loads with ``allow_pickle=False``):
-        :class:`tattotronix.io.artifacts.TrajectoryRecord`.
-
-        Args:
-            file: target path (ending in ``.npz``).
-            provenance: a JSON string (:func:`tattotronix.io.artifacts.make_provenance`).
-        """
-        TrajectoryRecord(joints=self.joints, t=self.t, q=self.q, qd=self.qd, qdd=self.qdd,
-                         kind=self.kind, marked=self.marked, tcp=self.tcp).save(file, provenance)
-
-
-@dataclass(frozen=True)
-class StoredTrajectory:
-    """A trajectory as read back from its npz.
-
-    Attributes:
-        joints: joint names.
-        t, q, qd, qdd, kind, marked, tcp: the arrays (see :class:`Trajectory`).
-        provenance: the parsed provenance (config, code_version, inputs).
-    """
-
-    joints: tuple[str, ...]
-    t: Array
-    q: Array
-    qd: Array
-    qdd: Array
-    kind: NDArray[np.int8]
-    marked: NDArray[np.bool_]
-    tcp: Array
-    provenance: JsonDict
-
-
-def load_trajectory(file: str | Path) -> StoredTrajectory:
-    """Read ``data/trajectories/<name>.npz`` (:class:`tattotronix.io.artifacts.TrajectoryRecord`).
-
-    Raises:
-        TattotronixError: a key is missing, or the file is unreadable.
-    """
-    r = TrajectoryRecord.load(file)
-    return StoredTrajectory(joints=r.joints, t=r.t, q=r.q, qd=r.qd, qdd=r.qdd, kind=r.kind,
-                            marked=r.marked, tcp=r.tcp, provenance=dict(r.provenance))
+    @classmethod
+    def load(cls, file: str | Path) -> TrajectoryRecord:  # type: ignore[override]
+        """The stored record (:meth:`TrajectoryRecord.load`): how a trajectory was planned
+        is not stored."""
+        return TrajectoryRecord.load(file)
 
 
 def _time_path(path: JointPath, params: TrajectoryParams, limits: JointLimits,
