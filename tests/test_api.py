@@ -108,7 +108,7 @@ def test_a_saved_plan_is_the_stages_files_byte_for_byte(tmp_path: Path) -> None:
     saved = c.run(PYTHON, "-c", script)
     assert saved.returncode == 0, saved.stderr[-3000:]
     files = ["artwork/mine.png", "artwork/mine-lines.npz", "mask/mine.npz",
-             "toolpaths/mine.npz", "robot/tattotronix.urdf", "ik/mine.npz",
+             "toolpath/mine.npz", "robot/tattotronix.urdf", "ik/mine.npz",
              "trajectories/mine.npz"]
     for f in files:
         ours, theirs = c.root / "saved" / f, c.root / "data" / f

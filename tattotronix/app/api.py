@@ -187,7 +187,7 @@ class Plan:
     def save(self, folder: str | Path) -> Path:
         """Write the files the stages from ``artwork`` to ``trajectory`` write, laid out as
         under ``data/``: ``artwork/<name>.png`` and ``-lines.npz``, ``mask/<name>.npz``,
-        ``toolpaths/<name>.npz``, ``robot/<robot>.urdf``, ``ik/<name>.npz`` and
+        ``toolpath/<name>.npz``, ``robot/<robot>.urdf``, ``ik/<name>.npz`` and
         ``trajectories/<name>.npz`` (the trajectory stage's format: README, "The stages");
         the trajectory's path.
 
