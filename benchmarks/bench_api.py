@@ -18,7 +18,6 @@ ordered toolpath, no IK or time law).
 
 from __future__ import annotations
 
-import argparse
 import sys
 import tempfile
 import time
@@ -26,7 +25,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-from run import Row, median_time
+from run import Row, bench_main, median_time
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -99,12 +98,7 @@ def bench(repeat: int) -> list[Row]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--repeat", type=int, default=5)
-    args = ap.parse_args(argv)
-    for name, value, unit, note in bench(args.repeat):
-        print(f"{name:55s} {value:9.3f} {unit:2s}  {note}")
-    return 0
+    return bench_main(bench, __doc__ or "", argv, repeat=5)
 
 
 if __name__ == "__main__":

@@ -15,7 +15,7 @@ import importlib.util
 import statistics
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -32,6 +32,17 @@ def median_time(fn: Callable[[], Any], repeat: int) -> tuple[float, Any]:
         result = fn()
         times.append(time.perf_counter() - t0)
     return statistics.median(times), result
+
+
+def bench_main(bench: Callable[[int], list[Row]], doc: str, argv: Sequence[str] | None = None,
+               repeat: int = 5) -> int:
+    """A benchmark script's command line: ``--repeat N``, then its rows printed."""
+    ap = argparse.ArgumentParser(description=doc.split("\n")[0])
+    ap.add_argument("--repeat", type=int, default=repeat)
+    args = ap.parse_args(argv)
+    for name, value, unit, note in bench(args.repeat):
+        print(f"{name:55s} {value:9.3f} {unit:2s}  {note}")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:

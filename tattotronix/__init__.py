@@ -7,6 +7,8 @@ at any depth (``lint-imports``, with the contracts in ``pyproject.toml``). Top t
 * ``devtools``: tools run on the project (the stages' code deps, the certification of the
   documents' figures, the tables derived from the CAD meshes); nothing below imports them.
 * ``stage``: the runner of ``stages/<name>.py``, above the library it calls; only they import it.
+* ``server``: the job server (``tattotronix serve``): the page, the routes and the one job,
+  a thin shell over ``app``.
 * ``report``: figures, the animation and the robot report present the results of every layer.
 * ``studies``: design studies, which run the pipeline, the control loop and the servo model.
 * ``app``: the use cases, once each (plan, preview, simulate, predict on the servos, draw on

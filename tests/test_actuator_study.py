@@ -38,7 +38,7 @@ from tattotronix.studies.actuator import (
 )
 from tattotronix.trajectory import MARK, TRAVEL
 
-from .conftest import ROOT, run_side_by_side, small_art
+from .conftest import run_side_by_side, small_art
 
 SMALL = ["mask.width_mm=24", "mask.min_region_mm2=0.5"]
 OPTIONS = ("as built, PCA9685 at 50 Hz", "as built, Arduino Servo library",
@@ -336,18 +336,3 @@ def test_stage_without_trajectory_names_the_trajectory_stage(stage_runs: Any) ->
     assert "'trajectory' stage" in run.stderr and "small.npz" in run.stderr
     assert "Traceback" not in run.stderr
     assert not (data / "metrics").exists() and not (data / "figures").exists()
-
-
-EMBLEM = ROOT / "data" / "trajectories" / "emblem.npz"
-EMBLEM_METRICS = ROOT / "data" / "metrics" / "actuator" / "emblem.json"
-
-
-@pytest.mark.skipif(not (EMBLEM.exists() and EMBLEM_METRICS.exists()),
-                    reason="the emblem's trajectory or actuator metrics are not checked out")
-def test_committed_metrics_regenerate(cfg: Any, chain: Chain) -> None:
-    """The committed data/metrics/actuator/emblem.json is what the study gives on the
-    emblem's trajectory, to 1e-12 (run `dvc repro` if this fails after a change)."""
-    m = json.loads(EMBLEM_METRICS.read_text())
-    again = study_from_config(cfg, chain, TrajectoryRecord.load(EMBLEM))
-    _assert_close(m, {"name": "emblem", **metrics(again),
-                      "series_file": "studies/actuator/emblem.npz"})

@@ -1,0 +1,92 @@
+"""A job's process: play a saved plan on the arm (``python -m tattotronix.server.runner
+JOB_FOLDER``).
+
+The server starts one per job, and again to resume it. ``JOB_FOLDER/job.json`` says what
+to draw: the plan's stages' files (``plan_data``, :meth:`tattotronix.app.api.Plan.save`),
+its name and settings (``overrides``), and ``dry_run``, ``realtime`` and ``resume``. The
+arm's own stop handling does the rest: SIGINT or SIGTERM stop it at the next frame with
+the needle lifted to the clearance height and every output off, and the state file keeps
+where it stopped for a resume (:class:`tattotronix.hardware.arm.ArmSession`).
+
+At exit it writes ``JOB_FOLDER/result.json``: ``status`` (``done``, ``paused`` or
+``failed``) and ``message``; its log is ``JOB_FOLDER/runner.log``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from pathlib import Path
+from typing import Any
+
+from tattotronix.errors import Interrupted, TattotronixError
+
+__all__ = ["JOB_FILE", "RESULT_FILE", "main", "run_job"]
+
+JOB_FILE = "job.json"
+RESULT_FILE = "result.json"
+LOG_FILE = "runner.log"
+
+log = logging.getLogger("tattotronix.server.runner")
+
+
+def arm_settings(job: dict[str, Any]) -> list[str]:
+    """The settings a job draws with: the plan's, then the arm's."""
+    return [*job["overrides"], "backend=arm",
+            f"dry_run={str(bool(job['dry_run'])).lower()}",
+            f"realtime={str(bool(job['realtime'])).lower()}",
+            f"resume={str(bool(job['resume'])).lower()}",
+            *job.get("arm_overrides", [])]
+
+
+def run_job(folder: Path) -> dict[str, Any]:
+    """Draw the job in ``folder`` on the arm; its result (also ``result.json``)."""
+    from tattotronix.app.api import settings_of
+    from tattotronix.app.draw import play
+    from tattotronix.control.drawing import Drawing
+    from tattotronix.io.artifacts import TrajectoryRecord
+    from tattotronix.io.outputs import Outputs
+    from tattotronix.robot.description import build_description
+
+    job = json.loads((folder / JOB_FILE).read_text(encoding="utf-8"))
+    name = str(job["name"])
+    result: dict[str, Any]
+    try:
+        cfg = settings_of(arm_settings(job))
+        desc = build_description(cfg.robot)
+        stored = TrajectoryRecord.path(job["plan_data"], name=name)
+        tr = TrajectoryRecord.load(stored)
+        drawing = Drawing(name, tr.t, tr.q, tr.qd, tr.kind, "stored", {"trajectory": stored})
+        # the arm's state lives in the server's folder (data), the job's logs in its own
+        with Outputs(Path(job["server"]), root=folder).transaction() as out:
+            summary = play(cfg, out, desc, drawing)
+        result = {"status": "done", "message": "drawn to the end", "summary": summary}
+    except Interrupted as exc:  # a stop request: the needle lifted, every output off
+        result = {"status": "paused", "message": str(exc)}
+    except KeyboardInterrupt:  # stopped before the session took over its signals
+        result = {"status": "paused", "message": "stopped before the first frame: nothing "
+                  "was sent"}
+    except TattotronixError as exc:
+        result = {"status": "failed", "message": str(exc)}
+    (folder / RESULT_FILE).write_text(json.dumps(result, indent=1, default=str) + "\n",
+                                      encoding="utf-8")
+    log.info("job %s: %s: %s", folder.name, result["status"], result["message"])
+    return result
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the job of the folder ``argv[0]``: 0 done, 3 paused, 1 failed."""
+    args = sys.argv[1:] if argv is None else argv
+    if len(args) != 1:
+        print("usage: python -m tattotronix.server.runner JOB_FOLDER", file=sys.stderr)
+        return 2
+    folder = Path(args[0])
+    logging.basicConfig(filename=folder / LOG_FILE, level=logging.INFO,
+                        format="%(asctime)s %(name)s: %(message)s")
+    result = run_job(folder)
+    return {"done": 0, "paused": 3}.get(result["status"], 1)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
