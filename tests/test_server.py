@@ -261,6 +261,14 @@ def test_a_restarted_server_offers_to_resume_a_job_its_crash_cut(tmp_path: Path,
     assert done["status"] == "done" and done["frame"] == done["frames"], done
 
 
+def test_a_garbled_job_file_leaves_a_server_that_starts(tmp_path: Path) -> None:
+    (tmp_path / "jobs" / "x").mkdir(parents=True)
+    (tmp_path / "jobs" / "x" / "job.json").write_text("{not json")
+    c = _client(tmp_path)
+    assert c.get("/api/jobs/current").status_code == 404
+    assert c.get("/api/health").json() == {"ok": True, "job": False}
+
+
 def test_the_page_is_served_and_names_every_control(tmp_path: Path) -> None:
     html = _client(tmp_path).get("/").text
     for needle in ("/api/plans", "/api/plans/strokes", "/api/jobs", "/api/ws",

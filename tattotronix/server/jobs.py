@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import logging
 import os
 import secrets
 import signal
@@ -39,6 +40,8 @@ from tattotronix.server.plans import StoredPlan
 from tattotronix.server.runner import JOB_FILE, LOG_FILE, RESULT_FILE
 
 __all__ = ["Job", "JobConflict", "JobManager"]
+
+log = logging.getLogger("tattotronix.server")
 
 #: statuses of a job that has a process (or is about to)
 ACTIVE = ("starting", "drawing", "pausing", "stopping")
@@ -136,8 +139,23 @@ class JobManager:
         specs = sorted(self.folder.glob(f"*/{JOB_FILE}"), key=lambda p: p.stat().st_mtime)
         if not specs:
             return
-        doc = json.loads(specs[-1].read_text(encoding="utf-8"))
-        job = Job(id=str(doc["id"]), folder=specs[-1].parent,
+        try:
+            doc = json.loads(specs[-1].read_text(encoding="utf-8"))
+            job = self._job_of(doc, specs[-1].parent)
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            log.warning("the last job's %s is unreadable (%s): no job is offered to resume; "
+                        "the arm's state file is untouched", specs[-1], exc)
+            return
+        self.job = job
+        if job.status in ACTIVE and not _alive(job.pid):
+            job.status, job.message = "resumable", (
+                "the server stopped while this job ran: resume it (the arm lifts the needle "
+                "first and approaches again) or stop it")
+        self._refresh()
+
+    @staticmethod
+    def _job_of(doc: dict[str, Any], folder: Path) -> Job:
+        return Job(id=str(doc["id"]), folder=folder,
                   spec={k: doc[k] for k in ("plan", "plan_data", "name", "overrides",
                                            "dry_run", "realtime", "resume", "server",
                                            "arm_overrides", "panel_origin") if k in doc},
@@ -145,12 +163,6 @@ class JobManager:
                   status=str(doc["status"]), message=str(doc.get("message", "")),
                   pid=doc.get("pid"), stop_asked=bool(doc.get("stop_asked")),
                   started_at=float(doc.get("started_at", time.time())))
-        self.job = job
-        if job.status in ACTIVE and not _alive(job.pid):
-            job.status, job.message = "resumable", (
-                "the server stopped while this job ran: resume it (the arm lifts the needle "
-                "first and approaches again) or stop it")
-        self._refresh()
 
     # ---------------------------------------------------------------- actions
     def start(self, stored: StoredPlan, *, dry_run: bool = True, realtime: bool = True,
