@@ -79,6 +79,32 @@ def test_loopback_needs_no_token_and_a_network_bind_does(tmp_path: Path) -> None
         assert json.loads(ws.receive_text()) == {"status": "none"}
 
 
+def test_other_sites_pages_and_host_names_are_refused(tmp_path: Path) -> None:
+    """A page of another site in the user's browser cannot act (a POST or the WebSocket
+    with its Origin), nor reach a loopback server by another host name (DNS rebinding)."""
+    c = _client(tmp_path / "a")
+    r = c.post("/api/jobs/current/resume", headers={"Origin": "http://evil.example"})
+    assert r.status_code == 403 and "another site" in r.json()["detail"]
+    r = c.post("/api/jobs/current/resume", headers={"Origin": "http://testserver"})
+    assert r.status_code == 409  # its own page: the action is taken (no job here)
+    with pytest.raises(WebSocketDisconnect) as closed, c.websocket_connect(
+            "/api/ws", headers={"Origin": "http://evil.example"}) as ws:
+        ws.receive_text()
+    assert closed.value.code == 1008
+    local = _client(tmp_path / "b", hosts=["localhost", "127.0.0.1"])
+    assert local.get("/api/health").status_code == 400  # Host: testserver
+    assert local.get("/api/health", headers={"Host": "127.0.0.1:8420"}).status_code == 200
+
+
+def test_behind_a_token_the_api_description_is_too(tmp_path: Path) -> None:
+    token, _ = load_or_make_token(tmp_path)
+    c = _client(tmp_path, token=token)
+    assert c.get("/openapi.json").status_code == 404 and c.get("/docs").status_code == 404
+    assert c.get("/api/openapi.json").status_code == 401
+    doc = c.get("/api/openapi.json", headers={"Authorization": f"Bearer {token}"}).json()
+    assert "/api/jobs" in doc["paths"]
+
+
 def test_a_token_file_others_can_read_is_refused(tmp_path: Path) -> None:
     load_or_make_token(tmp_path)
     os.chmod(tmp_path / "token", 0o644)

@@ -52,7 +52,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             if made:
                 print(f"access token (shown once; stored in {folder / 'token'}): {token}",
                       flush=True)
-        app = create_app(folder, token=token,
+        hosts = (["localhost", "127.0.0.1", "::1", "[::1]"] if is_loopback(args.host)
+                 else None)
+        app = create_app(folder, token=token, hosts=hosts,
                          max_upload_bytes=int(args.max_upload_mb * 1024 * 1024))
     except TattotronixError as exc:
         print(f"tattotronix serve: {exc}", file=sys.stderr)
@@ -60,7 +62,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     where = f"http://{args.host}:{args.port}/"
     print(f"serving {where} (folder {folder})" + ("" if token is None else
           "; open it with ?token=<token>"), flush=True)
-    uvicorn.run(app, host=args.host, port=args.port, log_level="info")
+    # no access log: the page's address and the WebSocket's carry the token (?token=)
+    uvicorn.run(app, host=args.host, port=args.port, log_level="info", access_log=False)
     return 0
 
 

@@ -14,7 +14,6 @@ whose process is gone while drawing is offered to resume: the arm lifts first).
 
 from __future__ import annotations
 
-import contextlib
 import json
 import logging
 import os
@@ -80,16 +79,38 @@ class Job:
     pid: int | None = None
     stop_asked: bool = False
     started_at: float = field(default_factory=time.time)
+    pid_start: str | None = None
 
     def save(self) -> None:
         """Write ``job.json`` (the runner's spec and the server's view of the job)."""
         doc = {**self.spec, "id": self.id, "state_file": str(self.state_file),
                "duration_s": self.duration_s, "status": self.status,
-               "message": self.message, "pid": self.pid, "stop_asked": self.stop_asked,
+               "message": self.message, "pid": self.pid, "pid_start": self.pid_start,
+               "stop_asked": self.stop_asked,
                "started_at": self.started_at}
         tmp = self.folder / f".{JOB_FILE}.tmp"
         tmp.write_text(json.dumps(doc, indent=1) + "\n", encoding="utf-8")
         tmp.replace(self.folder / JOB_FILE)
+
+
+def _start_time(pid: int) -> str | None:
+    """When the process ``pid`` started (Linux: field 22 of ``/proc/<pid>/stat``, in clock
+    ticks since boot); None where that is not known."""
+    try:
+        stat_line = Path(f"/proc/{pid}/stat").read_text(encoding="ascii", errors="replace")
+    except OSError:
+        return None
+    fields = stat_line.rpartition(")")[2].split()
+    return fields[19] if len(fields) > 19 else None
+
+
+def _is_runner(job: Job) -> bool:
+    """Whether the job's runner still runs: its pid alive, and the same process (its start
+    time unchanged: a pid the system gave to another process since is not it)."""
+    if not _alive(job.pid):
+        return False
+    return job.pid_start is None or job.pid is None or _start_time(job.pid) in (
+        None, job.pid_start)
 
 
 def _alive(pid: int | None) -> bool:
@@ -147,10 +168,14 @@ class JobManager:
                         "the arm's state file is untouched", specs[-1], exc)
             return
         self.job = job
-        if job.status in ACTIVE and not _alive(job.pid):
-            job.status, job.message = "resumable", (
-                "the server stopped while this job ran: resume it (the arm lifts the needle "
-                "first and approaches again) or stop it")
+        if job.status in ACTIVE and not _is_runner(job):
+            if (job.folder / RESULT_FILE).exists():  # it ended while the server was down
+                self._finish(job, -1)
+            else:
+                job.status, job.message = "resumable", (
+                    "the server stopped while this job ran: resume it (the arm lifts the "
+                    "needle first and approaches again) or stop it")
+                job.save()
         self._refresh()
 
     @staticmethod
@@ -158,11 +183,13 @@ class JobManager:
         return Job(id=str(doc["id"]), folder=folder,
                   spec={k: doc[k] for k in ("plan", "plan_data", "name", "overrides",
                                            "dry_run", "realtime", "resume", "server",
-                                           "arm_overrides", "panel_origin") if k in doc},
+                                           "arm_overrides", "panel_origin", "data")
+                        if k in doc},
                   state_file=Path(doc["state_file"]), duration_s=float(doc["duration_s"]),
                   status=str(doc["status"]), message=str(doc.get("message", "")),
                   pid=doc.get("pid"), stop_asked=bool(doc.get("stop_asked")),
-                  started_at=float(doc.get("started_at", time.time())))
+                  started_at=float(doc.get("started_at", time.time())),
+                  pid_start=doc.get("pid_start"))
 
     # ---------------------------------------------------------------- actions
     def start(self, stored: StoredPlan, *, dry_run: bool = True, realtime: bool = True,
@@ -184,16 +211,22 @@ class JobManager:
             jid = time.strftime("%Y%m%d-%H%M%S-") + secrets.token_hex(3)
             folder = self.folder / jid
             folder.mkdir(parents=True)
-            spec = {"plan": stored.id, "plan_data": str(stored.data),
-                    "name": stored.plan.name, "overrides": list(stored.plan.overrides),
-                    "dry_run": bool(dry_run), "realtime": bool(realtime), "resume": False,
-                    "server": str(self.server), "arm_overrides": list(arm_overrides)}
             from tattotronix.app.api import settings_of
             from tattotronix.server.runner import arm_settings
 
+            # the real arm is always paced at its frame rate; its state file (and lock) is
+            # the one draw.py keeps (hardware.state_file under paths.data, from where the
+            # server runs), so the two never drive the servos at once
+            spec: dict[str, Any] = {"plan": stored.id, "plan_data": str(stored.data),
+                    "name": stored.plan.name, "overrides": list(stored.plan.overrides),
+                    "dry_run": bool(dry_run), "realtime": bool(realtime) or not dry_run,
+                    "resume": False, "server": str(self.server),
+                    "arm_overrides": list(arm_overrides)}
             cfg = settings_of(arm_settings(spec))
+            data = self.server if dry_run else Path(cfg.paths.data).resolve()
+            spec["data"] = str(data)
             spec["panel_origin"] = [float(c) for c in cfg.toolpath.panel_origin]
-            state = state_file_of(cfg, self.server,
+            state = state_file_of(cfg, data,
                                   run_dir(folder, run_label(stored.plan.name, "arm")))
             job = Job(jid, folder, spec, state, float(stored.plan.trajectory.duration_s))
             self._chains[jid] = Chain.from_description(stored.plan.desc)
@@ -210,6 +243,7 @@ class JobManager:
             stdout=log, stderr=subprocess.STDOUT, start_new_session=True)
         log.close()
         job.pid, job.status, job.message = job.process.pid, "starting", message
+        job.pid_start = _start_time(job.pid)
         job.stop_asked = False
         job.save()
 
@@ -240,7 +274,10 @@ class JobManager:
             if job is None or job.status not in ("paused", "resumable", "failed"):
                 raise JobConflict("no job to resume: " + (
                     f"job {job.id} is {job.status}" if job else "no job yet"))
-            job.spec["resume"] = True
+            # continue only what this job drew: one stopped before its first frame starts
+            # afresh (the arm's state may be another job's of the same drawing)
+            poses = run_dir(job.folder, run_label(str(job.spec["name"]), "arm")) / "poses.jsonl"
+            job.spec["resume"] = poses.is_file() and poses.stat().st_size > 0
             self._chains.setdefault(job.id, self._chain_of(job))
             self._launch(job, "resuming: the lift, then the approach to where it stopped")
             return job
@@ -278,9 +315,15 @@ class JobManager:
         return job
 
     def _signal(self, job: Job, sig: signal.Signals) -> None:
-        if job.pid is not None:
-            with contextlib.suppress(ProcessLookupError):
-                os.kill(job.pid, sig)
+        if job.pid is None or not _is_runner(job):
+            return
+        try:
+            os.kill(job.pid, sig)
+        except ProcessLookupError:
+            return
+        except PermissionError:
+            raise JobConflict(f"the job's process ({job.pid}) is not this server's to "
+                              "signal") from None
 
     # ---------------------------------------------------------------- state
     def _chain_of(self, job: Job) -> Chain:
@@ -296,7 +339,7 @@ class JobManager:
         if job is None or job.status not in ACTIVE:
             return
         code = job.process.poll() if job.process is not None else (
-            None if _alive(job.pid) else -1)
+            None if _is_runner(job) else -1)
         if code is None:
             if job.status == "starting" and job.state_file.exists():
                 state = self._arm_state(job)
@@ -304,6 +347,10 @@ class JobManager:
                         state.status == "drawing" and state.saved_at >= job.started_at):
                     job.status, job.message = "drawing", "drawing"
             return
+        self._finish(job, code)
+
+    def _finish(self, job: Job, code: int) -> None:
+        """The job's status from the result its runner left (or its exit ``code``)."""
         result = self._result(job)
         status = str(result.get("status", "failed"))
         job.message = str(result.get("message", "")) or f"the runner ended with code {code}"

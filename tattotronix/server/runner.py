@@ -58,21 +58,41 @@ def run_job(folder: Path) -> dict[str, Any]:
         stored = TrajectoryRecord.path(job["plan_data"], name=name)
         tr = TrajectoryRecord.load(stored)
         drawing = Drawing(name, tr.t, tr.q, tr.qd, tr.kind, "stored", {"trajectory": stored})
-        # the arm's state lives in the server's folder (data), the job's logs in its own
-        with Outputs(Path(job["server"]), root=folder).transaction() as out:
+        # the arm's state where the job says (draw.py's for the real arm), its logs here
+        with Outputs(Path(job.get("data", job["server"])), root=folder).transaction() as out:
             summary = play(cfg, out, desc, drawing)
         result = {"status": "done", "message": "drawn to the end", "summary": summary}
     except Interrupted as exc:  # a stop request: the needle lifted, every output off
         result = {"status": "paused", "message": str(exc)}
-    except KeyboardInterrupt:  # stopped before the session took over its signals
-        result = {"status": "paused", "message": "stopped before the first frame: nothing "
-                  "was sent"}
+    except KeyboardInterrupt:  # before the session took over its signals, or after
+        if _state_status(job, folder) == "done":
+            result = {"status": "done", "message": "drawn to the end (a stop request came "
+                      "as it finished)"}
+        else:
+            result = {"status": "paused", "message": "stopped before the first frame: "
+                      "nothing was sent"}
     except TattotronixError as exc:
         result = {"status": "failed", "message": str(exc)}
     (folder / RESULT_FILE).write_text(json.dumps(result, indent=1, default=str) + "\n",
                                       encoding="utf-8")
     log.info("job %s: %s: %s", folder.name, result["status"], result["message"])
     return result
+
+
+def _state_status(job: dict[str, Any], folder: Path) -> str | None:
+    """The status in the job's arm state file, if it is this drawing's."""
+    from tattotronix.app.api import settings_of
+    from tattotronix.app.arm import state_file_of
+    from tattotronix.io.artifacts import run_dir, run_label
+
+    try:
+        cfg = settings_of(arm_settings(job))
+        state = state_file_of(cfg, Path(job.get("data", job["server"])),
+                              run_dir(folder, run_label(str(job["name"]), "arm")))
+        doc = json.loads(state.read_text(encoding="utf-8"))
+    except (OSError, ValueError, TattotronixError):
+        return None
+    return str(doc.get("status")) if doc.get("drawing") == job["name"] else None
 
 
 def main(argv: list[str] | None = None) -> int:

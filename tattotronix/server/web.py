@@ -23,9 +23,11 @@ from __future__ import annotations
 import asyncio
 import json
 import logging
+from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Annotated, Any
+from urllib.parse import urlsplit
 
 from fastapi import (
     Depends,
@@ -40,6 +42,7 @@ from fastapi import (
 )
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse
 from pydantic import BaseModel, Field
+from starlette.middleware.trustedhost import TrustedHostMiddleware
 
 from tattotronix.errors import ConfigError, TattotronixError
 from tattotronix.server.auth import token_matches
@@ -82,17 +85,39 @@ class JobIn(BaseModel):
 
 
 def create_app(folder: Path, *, token: str | None = None,
-               max_upload_bytes: int | None = None, python: str | None = None) -> FastAPI:
+               max_upload_bytes: int | None = None, python: str | None = None,
+               hosts: Sequence[str] | None = None) -> FastAPI:
     """The server's application.
 
     Args:
-        folder: the server's own folder (plans, jobs, the arm's state, the token).
+        folder: the server's own folder (plans, jobs, dry runs' arm state, the token).
         token: required on every route but the page (None: none, on a loopback bind).
         max_upload_bytes: the largest upload taken.
         python: the interpreter that runs jobs (this one if None).
+        hosts: the only ``Host`` names taken (a loopback bind's: a page elsewhere cannot
+            reach it by DNS rebinding); None: any. A request whose ``Origin`` is not its
+            own host is refused on every action and the WebSocket (no other site's page
+            can start, pause or resume the arm from a visitor's browser).
     """
+    from tattotronix.app.api import settings_of
+
+    settings_of([])  # Hydra's compose once, before any thread can race to it
+    open_docs = token is None  # behind a token, the description is /api/openapi.json
     app = FastAPI(title="TATTOTRONIX", version="0.1.0",
-                  description="Plan a drawing, preview it, and draw it on the arm.")
+                  description="Plan a drawing, preview it, and draw it on the arm.",
+                  docs_url="/docs" if open_docs else None,
+                  redoc_url="/redoc" if open_docs else None,
+                  openapi_url="/openapi.json" if open_docs else None)
+    if hosts is not None:
+        app.add_middleware(TrustedHostMiddleware, allowed_hosts=list(hosts))
+
+    @app.middleware("http")
+    async def same_origin(request: Request, call_next: Any) -> Any:
+        if request.method not in ("GET", "HEAD", "OPTIONS") and not _same_origin(
+                request.headers):
+            return JSONResponse({"detail": "refused: a request from another site's page"},
+                                status_code=403)
+        return await call_next(request)
     plans = PlanStore(folder, **({"max_upload_bytes": max_upload_bytes}
                                  if max_upload_bytes else {}))
     jobs = JobManager(folder, **({"python": python} if python else {}))
@@ -253,10 +278,18 @@ def create_app(folder: Path, *, token: str | None = None,
         jobs.stop()
         return jobs.state() or {}
 
+    if token is not None:  # the API's description, behind the token too
+        @app.get("/api/openapi.json", dependencies=[Auth], include_in_schema=False)
+        def openapi() -> dict[str, Any]:
+            return app.openapi()
+
     @app.websocket("/api/ws")
     async def live(ws: WebSocket) -> None:
         """The job's live state (as ``GET /api/jobs/current``, ``{"status": "none"}``
         before any job), pushed every half second."""
+        if not _same_origin(ws.headers):
+            await ws.close(code=1008, reason="refused: a connection from another site's page")
+            return
         if token is not None and not token_matches(ws.query_params.get("token"), token):
             await ws.close(code=1008, reason="this server needs its token: ?token=<token>")
             return
@@ -270,6 +303,15 @@ def create_app(folder: Path, *, token: str | None = None,
             return
 
     return app
+
+
+def _same_origin(headers: Any) -> bool:
+    """Whether the request has no ``Origin`` (not a browser's cross-site request) or one
+    whose host is the request's own ``Host``."""
+    origin = headers.get("origin")
+    if not origin:  # a script, curl, the test client: no page of another site
+        return True
+    return urlsplit(origin).netloc == headers.get("host", "")  # "null": refused
 
 
 async def _read_limited(file: UploadFile, plans: PlanStore) -> bytes:
