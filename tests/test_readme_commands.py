@@ -47,6 +47,17 @@ COVERED: dict[str, tuple[str, ...]] = {
         NOT_RUN, "the test suite itself; `bash .ci/run` runs it, and "
         "tests/test_docs.py::test_readme_opens_with_the_two_fresh_machine_commands checks "
         "that .ci/run holds `python -m pytest`"),
+    # --- the job server
+    "tattotronix serve": (
+        TEST, "tests/test_server.py::"
+        "test_serve_binds_locally_without_a_token_and_to_the_network_with_one",
+        "the command as written (on a free port, in a scratch folder): it answers this "
+        "machine with no token"),
+    "tattotronix serve --host 0.0.0.0": (
+        TEST, "tests/test_server.py::"
+        "test_serve_binds_locally_without_a_token_and_to_the_network_with_one",
+        "the command as written (on a free port, in a scratch folder): the token is "
+        "printed once and every route but the page needs it"),
     # --- sharing the cache
     "dvc remote add -d shared /mnt/team/tattotronix-dvc": (
         NOT_RUN, "needs a team folder (a local or network mount) for the remote and writes "

@@ -25,7 +25,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -36,7 +36,7 @@ from tattotronix.io.artifacts import run_dir, run_label
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.kinematics import Chain
 from tattotronix.server.plans import StoredPlan
-from tattotronix.server.runner import JOB_FILE, LOG_FILE, RESULT_FILE
+from tattotronix.server.runner import JOB_FILE, LOG_FILE, RESULT_FILE, JobSpec
 
 __all__ = ["Job", "JobConflict", "JobManager"]
 
@@ -70,7 +70,7 @@ class Job:
 
     id: str
     folder: Path
-    spec: dict[str, Any]
+    spec: JobSpec
     state_file: Path
     duration_s: float
     status: str = "starting"
@@ -181,10 +181,8 @@ class JobManager:
     @staticmethod
     def _job_of(doc: dict[str, Any], folder: Path) -> Job:
         return Job(id=str(doc["id"]), folder=folder,
-                  spec={k: doc[k] for k in ("plan", "plan_data", "name", "overrides",
-                                           "dry_run", "realtime", "resume", "server",
-                                           "arm_overrides", "panel_origin", "data")
-                        if k in doc},
+                  spec=cast(JobSpec, {k: doc[k] for k in JobSpec.__annotations__
+                                      if k in doc}),
                   state_file=Path(doc["state_file"]), duration_s=float(doc["duration_s"]),
                   status=str(doc["status"]), message=str(doc.get("message", "")),
                   pid=doc.get("pid"), stop_asked=bool(doc.get("stop_asked")),
@@ -217,7 +215,7 @@ class JobManager:
             # the real arm is always paced at its frame rate; its state file (and lock) is
             # the one draw.py keeps (hardware.state_file under paths.data, from where the
             # server runs), so the two never drive the servos at once
-            spec: dict[str, Any] = {"plan": stored.id, "plan_data": str(stored.data),
+            spec: JobSpec = {"plan": stored.id, "plan_data": str(stored.data),
                     "name": stored.plan.name, "overrides": list(stored.plan.overrides),
                     "dry_run": bool(dry_run), "realtime": bool(realtime) or not dry_run,
                     "resume": False, "server": str(self.server),

@@ -18,11 +18,12 @@ import json
 import logging
 import sys
 from pathlib import Path
-from typing import Any
+from typing import TypedDict
 
 from tattotronix.errors import Interrupted, TattotronixError
+from tattotronix.io.jsontypes import JsonDict
 
-__all__ = ["JOB_FILE", "RESULT_FILE", "main", "run_job"]
+__all__ = ["JOB_FILE", "RESULT_FILE", "JobSpec", "main", "run_job"]
 
 JOB_FILE = "job.json"
 RESULT_FILE = "result.json"
@@ -31,7 +32,31 @@ LOG_FILE = "runner.log"
 log = logging.getLogger("tattotronix.server.runner")
 
 
-def arm_settings(job: dict[str, Any]) -> list[str]:
+class JobSpec(TypedDict, total=False):
+    """What a job draws and how (``job.json``, written by the server).
+
+    Attributes:
+        plan: the plan's id; plan_data: its stages' files; name: the drawing's name.
+        overrides: the plan's settings; arm_overrides: further ``hardware.*`` settings.
+        dry_run, realtime, resume: as ``draw.py backend=arm`` takes them.
+        server: the server's folder; data: where the arm's state file lives.
+        panel_origin: the panel's origin in the arm's frame, m (for the live tip).
+    """
+
+    plan: str
+    plan_data: str
+    name: str
+    overrides: list[str]
+    arm_overrides: list[str]
+    dry_run: bool
+    realtime: bool
+    resume: bool
+    server: str
+    data: str
+    panel_origin: list[float]
+
+
+def arm_settings(job: JobSpec) -> list[str]:
     """The settings a job draws with: the plan's, then the arm's."""
     return [*job["overrides"], "backend=arm",
             f"dry_run={str(bool(job['dry_run'])).lower()}",
@@ -40,7 +65,7 @@ def arm_settings(job: dict[str, Any]) -> list[str]:
             *job.get("arm_overrides", [])]
 
 
-def run_job(folder: Path) -> dict[str, Any]:
+def run_job(folder: Path) -> JsonDict:
     """Draw the job in ``folder`` on the arm; its result (also ``result.json``)."""
     from tattotronix.app.api import settings_of
     from tattotronix.app.draw import play
@@ -49,9 +74,9 @@ def run_job(folder: Path) -> dict[str, Any]:
     from tattotronix.io.outputs import Outputs
     from tattotronix.robot.description import build_description
 
-    job = json.loads((folder / JOB_FILE).read_text(encoding="utf-8"))
+    job: JobSpec = json.loads((folder / JOB_FILE).read_text(encoding="utf-8"))
     name = str(job["name"])
-    result: dict[str, Any]
+    result: JsonDict
     try:
         cfg = settings_of(arm_settings(job))
         desc = build_description(cfg.robot)
@@ -79,7 +104,7 @@ def run_job(folder: Path) -> dict[str, Any]:
     return result
 
 
-def _state_status(job: dict[str, Any], folder: Path) -> str | None:
+def _state_status(job: JobSpec, folder: Path) -> str | None:
     """The status in the job's arm state file, if it is this drawing's."""
     from tattotronix.app.api import settings_of
     from tattotronix.app.arm import state_file_of
@@ -105,7 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(filename=folder / LOG_FILE, level=logging.INFO,
                         format="%(asctime)s %(name)s: %(message)s")
     result = run_job(folder)
-    return {"done": 0, "paused": 3}.get(result["status"], 1)
+    return {"done": 0, "paused": 3}.get(str(result["status"]), 1)
 
 
 if __name__ == "__main__":
