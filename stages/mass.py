@@ -5,7 +5,7 @@
 * ``robot.cad_dir`` set: every link's mesh is integrated (``tattotronix.robot.mass``);
   the metrics add the per-link difference against the committed table and the sha256 of
   each mesh. The committed table is rewritten only by
-  ``python -m tattotronix.robot.mass --cad-dir DIR --write``.
+  ``python -m tattotronix.devtools.tables mass --cad-dir DIR --write``.
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ def main(cfg: Config, out: Outputs) -> None:
         if worst > SAME_TABLE_RTOL:
             log.warning(
                 "mass: the committed table differs from the meshes by up to %.3g (relative);"
-                " regenerate it: python -m tattotronix.robot.mass --cad-dir %s --write",
+                " regenerate it: python -m tattotronix.devtools.tables mass --cad-dir %s --write",
                 worst,
                 report["cad_dir"],
             )

@@ -119,7 +119,7 @@ def write_kdops(cad_dir: str | Path, links: Iterable[str], scale: float,
     """Compute every link's k-DOP from its mesh and write the table (JSON, mm-rounded m)."""
     files = mesh_dir_files(cad_dir, list(links))
     table = {link: kdop_offsets(mesh_vertices(f, scale), k) for link, f in files.items()}
-    doc = {"generated_by": "python -m tattotronix.collision.shapes --cad-dir DIR --write",
+    doc = {"generated_by": "python -m tattotronix.devtools.tables kdops --cad-dir DIR --write",
            "units": "m, link frame", "directions": k,
            "links": {link: [round(float(v), 5) for v in off] for link, off in table.items()}}
     Path(file).write_text(json.dumps(doc, indent=1) + "\n")

@@ -445,7 +445,7 @@ def table_from_config(robot_cfg: RobotConfig) -> dict[str, MassProperties]:
     if missing:
         raise TattotronixError(
             f"robot.printed lacks {', '.join(missing)}: regenerate it with "
-            "`python -m tattotronix.robot.mass --cad-dir DIR --write`"
+            "`python -m tattotronix.devtools.tables mass --cad-dir DIR --write`"
         )
     return {
         link: MassProperties.from_inertial(
@@ -458,7 +458,7 @@ def table_from_config(robot_cfg: RobotConfig) -> dict[str, MassProperties]:
 
 
 _YAML_HEADER = """\
-# GENERATED from the CAD meshes by `python -m tattotronix.robot.mass --cad-dir DIR --write`:
+# GENERATED from the CAD meshes by `python -m tattotronix.devtools.tables mass --cad-dir DIR --write`:
 # do not edit. `python stages/mass.py robot.cad_dir=DIR` reports its distance to the meshes.
 # Printed shells (mesh volume x pla_density x printed_fraction) plus catalogue servos;
 # mass kg, com m (link frame), inertia kg m^2 about the CoM in link axes:
