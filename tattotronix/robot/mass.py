@@ -463,7 +463,7 @@ _YAML_HEADER = """\
 # Printed shells (mesh volume x pla_density x printed_fraction) plus catalogue servos;
 # mass kg, com m (link frame), inertia kg m^2 about the CoM in link axes:
 # [ixx, ixy, ixz, iyy, iyz, izz].
-"""
+"""  # noqa: E501
 
 
 def table_yaml(table: Mapping[str, MassProperties]) -> str:
