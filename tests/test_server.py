@@ -287,6 +287,33 @@ def test_a_restarted_server_offers_to_resume_a_job_its_crash_cut(tmp_path: Path,
     assert done["status"] == "done" and done["frame"] == done["frames"], done
 
 
+@pytest.mark.slow
+def test_stopping_a_job_whose_process_died_lifts_the_needle_first(tmp_path: Path,
+                                                                   art: bytes) -> None:
+    c = _client(tmp_path)
+    pid = _plan(c, art)["id"]
+    assert c.post("/api/jobs", json={"plan": pid}).status_code == 201
+    st = _wait(c, lambda s: s["status"] == "drawing" and s["frame"] > 10 and
+               s["tip_mm"][2] < 0.5)  # the needle in the work
+    doc = json.loads((tmp_path / "jobs" / st["id"] / "job.json").read_text())
+    os.kill(doc["pid"], signal.SIGKILL)
+    time.sleep(0.5)
+    again = _client(tmp_path)
+    assert again.get("/api/jobs/current").json()["status"] == "resumable"
+    r = again.post("/api/jobs/current/stop")
+    assert r.status_code == 200 and r.json()["status"] == "stopping"
+    st = _wait(again, lambda s: s["status"] in ("stopped", "failed"))
+    assert st["status"] == "stopped", st
+    assert "parked" in st["message"] and "the needle lifted" in st["message"]
+    assert "every output is off" in st["message"]
+    assert st["arm_status"] == "paused" and st["tip_mm"][2] > 1.0  # lifted from the work
+    runs = tmp_path / "jobs" / st["id"] / "runs"
+    last = [json.loads(x) for x in
+            next(runs.glob("*-arm")).joinpath("poses.jsonl").read_text().splitlines()][-1]
+    assert last["phase"] == "lift"  # the park sent the lift and nothing else
+    assert again.post("/api/jobs/current/resume").status_code == 409  # stopped is over
+
+
 def test_a_garbled_job_file_leaves_a_server_that_starts(tmp_path: Path) -> None:
     (tmp_path / "jobs" / "x").mkdir(parents=True)
     (tmp_path / "jobs" / "x" / "job.json").write_text("{not json")

@@ -106,14 +106,16 @@ def state_file_of(cfg: Config, data: Path, folder: Path) -> Path:
     return Path(data).joinpath(*Path(str(cfg.hardware.state_file)).parts)
 
 
-def play_on_arm(cfg: Config, out: Outputs, desc: RobotDescription, drawing: Drawing
-                ) -> JsonDict:
+def play_on_arm(cfg: Config, out: Outputs, desc: RobotDescription, drawing: Drawing, *,
+                park: bool = False) -> JsonDict:
     """``draw.py backend=arm``: compile the drawing and stream it.
 
     Prints the plan first (:mod:`tattotronix.hardware.preview`); ``preview=true`` stops
     there with ``preview.png``. Appends to ``runs/<name>-arm/{i2c.jsonl (dry run),
     poses.jsonl}`` under the write root (``runs/`` by hand: ``io.outputs.write_root``),
     writes the arm state file, and on completion ``metrics/runs/<name>-arm.json``.
+    ``park``: only lift the needle from where the last session of this drawing left the
+    arm and switch every output off (:attr:`~tattotronix.hardware.arm.ArmSession.park`).
 
     Raises:
         TattotronixError: a bad calibration, a drawing not clear of the bench, a bad ramp.
@@ -144,13 +146,13 @@ def play_on_arm(cfg: Config, out: Outputs, desc: RobotDescription, drawing: Draw
         run_dir=folder, state_file=state_file_of(cfg, out.data, folder),
         clearance_z_m=clearance, surface_z_m=surface, feed_m_s=cfg.toolpath.feed_mark_m_s,
         ramp_rad_s=speed, ik=ik_options(cfg.ik), dry_run=bool(cfg.dry_run),
-        realtime=bool(cfg.realtime), resume=bool(cfg.resume),
+        realtime=bool(cfg.realtime), resume=bool(cfg.resume), park=park,
         fail_after_writes=cfg.hardware.fail_after_writes,
         save_every_s=float(cfg.hardware.save_every_s))
     log.info("arm %s: %d frames at %g Hz (%.1f s), %s%s", drawing.name, program.frames,
              program.frame_hz, program.frames / program.frame_hz,
              "dry run" if session.dry_run else f"{calib.device} at 0x{calib.address:02x}",
-             ", resuming" if session.resume else "")
+             ", parking" if park else ", resuming" if session.resume else "")
     summary = session.run()
     summary["program_metrics"] = program.metrics(calib, session.chain)
     out.write_json(out.path("metrics", "runs", f"{drawing.name}-arm.json"), summary)

@@ -589,6 +589,9 @@ class ArmSession:
         ramp_rad_s: the fastest joint speed of ramps, rad/s.
         ik: IK keyword arguments for lifts and approaches (``kinematics.ik_options``).
         dry_run, realtime, resume: as configured.
+        park: lift the needle from where the last session of this drawing left the arm and
+            switch every output off, drawing nothing (the stop of a job whose process
+            died); the state keeps where the drawing stopped, for a later resume.
         fail_after_writes: dry-run fault injection.
         save_every_s: refresh the state file this often (of program time).
     """
@@ -607,6 +610,7 @@ class ArmSession:
     dry_run: bool = True
     realtime: bool = True
     resume: bool = False
+    park: bool = False
     fail_after_writes: int | None = None
     save_every_s: float = HardwareConfig().save_every_s
 
@@ -670,6 +674,9 @@ class ArmSession:
         """
         n = len(self.calib.joints)
         if state is None:
+            if self.park:
+                raise TattotronixError(f"nothing to park for '{self.name}': no state file, so"
+                                       " the arm's pose is unknown; nothing was sent")
             if self.resume:
                 raise TattotronixError(f"nothing to resume for '{self.name}': no state file;"
                                        " run without resume=true to start from the beginning")
@@ -683,7 +690,7 @@ class ArmSession:
                 tail = _LogTail()  # not the log of that session: the state is all we know
             else:
                 q = np.asarray(tail.q, dtype=np.float64)  # the last pose it sent
-        if not self.resume:
+        if not (self.resume or self.park):
             return _Start(0, q, 0, crashed)
         if state.drawing != self.name or state.status not in ("paused", "failed", "drawing"):
             raise TattotronixError(
@@ -837,6 +844,9 @@ class ArmSession:
         lift = self._lift(q_start)
         play(lift, "lift", interruptible=False)
         run.lifted = len(lift)
+        if self.park:  # nothing drawn: lifted, then every output off (the caller)
+            run.status, run.stopped_in = "paused", "park"
+            return
         run.stage = "approach" if self.resume else "ramp"
         lead = (self._approach(st.q, prog.q[start]) if self.resume else
                 ramp(st.q, prog.q[start], self.ramp_rad_s, prog.frame_hz))
@@ -877,6 +887,12 @@ class ArmSession:
         needle = self._needle(np.asarray(state.q, dtype=np.float64))
         if run.status == "done":
             return ""
+        if run.stopped_in == "park":
+            return (f"parked at frame {state.frame} of {self.program.frames}: "
+                    + (f"the needle lifted to the clearance height ({run.lifted} frames)"
+                       if run.lifted else "the needle was already at the clearance height")
+                    + f"; the last pose sent has the needle tip at {needle}; every output "
+                    "is off")
         if run.status == "paused":
             names = stop.names()
             later = (f" (then {', '.join(names[1:])}: noted and ignored, so as never to"
@@ -899,7 +915,7 @@ class ArmSession:
         """The session's summary when done.
 
         Raises:
-            Paused: a stop request ended it (with the needle lifted).
+            Paused: a stop request ended it (with the needle lifted); not a park's.
             TattotronixError: it failed (the state file says where, for ``resume=true``).
         """
         prog, stream = self.program, run.stream
@@ -912,6 +928,9 @@ class ArmSession:
             "frames_sent": stream.sent if stream else 0,
             "channel_writes": stream.writes if stream else 0,
             "session": state.session, "wall_s": wall_s, "program": state.program}
+        if run.stopped_in == "park":
+            summary["status"] = "parked"
+            return summary
         if run.status == "paused":
             raise Paused(f"{state.reason}. Continue with resume=true", stop.signals[0])
         if run.status == "failed":

@@ -218,7 +218,7 @@ class JobManager:
             spec: JobSpec = {"plan": stored.id, "plan_data": str(stored.data),
                     "name": stored.plan.name, "overrides": list(stored.plan.overrides),
                     "dry_run": bool(dry_run), "realtime": bool(realtime) or not dry_run,
-                    "resume": False, "server": str(self.server),
+                    "resume": False, "park": False, "server": str(self.server),
                     "arm_overrides": list(arm_overrides)}
             cfg = settings_of(arm_settings(spec))
             data = self.server if dry_run else Path(cfg.paths.data).resolve()
@@ -276,13 +276,16 @@ class JobManager:
             # afresh (the arm's state may be another job's of the same drawing)
             poses = run_dir(job.folder, run_label(str(job.spec["name"]), "arm")) / "poses.jsonl"
             job.spec["resume"] = poses.is_file() and poses.stat().st_size > 0
+            job.spec["park"] = False
             self._chains.setdefault(job.id, self._chain_of(job))
             self._launch(job, "resuming: the lift, then the approach to where it stopped")
             return job
 
     def stop(self) -> Job:
         """End the job: a drawing one stops at its next frame with the needle lifted and
-        every output off; it is not offered to resume.
+        every output off; one whose process died (a failure, a server that stopped while
+        it ran) is parked: a process lifts the needle from the last pose sent and switches
+        every output off. A stopped job is not offered to resume.
 
         Raises:
             JobConflict: no job, or it has ended.
@@ -299,6 +302,13 @@ class JobManager:
                 job.status, job.message = "stopping", (
                     "stopping: the arm stops at its next frame, lifts the needle and "
                     "switches every output off")
+            elif job.status in ("resumable", "failed") and job.state_file.exists():
+                # its process died where it was: the needle may be in the work
+                job.spec["park"], job.spec["resume"] = True, False
+                self._launch(job, "stopping: lifting the needle from the last pose sent, "
+                             "then switching every output off")
+                job.status, job.stop_asked = "stopping", True
+                job.save()
             else:
                 job.status, job.message = "stopped", "stopped: " + job.message
             job.save()
@@ -352,7 +362,9 @@ class JobManager:
         result = self._result(job)
         status = str(result.get("status", "failed"))
         job.message = str(result.get("message", "")) or f"the runner ended with code {code}"
-        if job.stop_asked and status in ("paused", "failed"):
+        if job.spec.get("park") and status == "failed":
+            job.message = "the lift failed (stop again to retry, or resume): " + job.message
+        elif job.stop_asked and status in ("paused", "failed"):
             status = "stopped"
         job.status = status
         job.process = None

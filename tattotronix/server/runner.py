@@ -9,7 +9,7 @@ the needle lifted to the clearance height and every output off, and the state fi
 where it stopped for a resume (:class:`tattotronix.hardware.arm.ArmSession`).
 
 At exit it writes ``JOB_FOLDER/result.json``: ``status`` (``done``, ``paused`` or
-``failed``) and ``message``; its log is ``JOB_FOLDER/runner.log``.
+``failed``; ``stopped`` after a park) and ``message``; its log is ``JOB_FOLDER/runner.log``.
 """
 
 from __future__ import annotations
@@ -39,6 +39,8 @@ class JobSpec(TypedDict, total=False):
         plan: the plan's id; plan_data: its stages' files; name: the drawing's name.
         overrides: the plan's settings; arm_overrides: further ``hardware.*`` settings.
         dry_run, realtime, resume: as ``draw.py backend=arm`` takes them.
+        park: only lift the needle from where the job's last process left the arm and
+            switch every output off (the stop of a job whose process died).
         server: the server's folder; data: where the arm's state file lives.
         panel_origin: the panel's origin in the arm's frame, m (for the live tip).
     """
@@ -51,6 +53,7 @@ class JobSpec(TypedDict, total=False):
     dry_run: bool
     realtime: bool
     resume: bool
+    park: bool
     server: str
     data: str
     panel_origin: list[float]
@@ -68,6 +71,7 @@ def arm_settings(job: JobSpec) -> list[str]:
 def run_job(folder: Path) -> JsonDict:
     """Draw the job in ``folder`` on the arm; its result (also ``result.json``)."""
     from tattotronix.app.api import settings_of
+    from tattotronix.app.arm import play_on_arm
     from tattotronix.app.draw import play
     from tattotronix.control.drawing import Drawing
     from tattotronix.io.artifacts import TrajectoryRecord
@@ -85,8 +89,13 @@ def run_job(folder: Path) -> JsonDict:
         drawing = Drawing(name, tr.t, tr.q, tr.qd, tr.kind, "stored", {"trajectory": stored})
         # the arm's state where the job says (draw.py's for the real arm), its logs here
         with Outputs(Path(job.get("data", job["server"])), root=folder).transaction() as out:
-            summary = play(cfg, out, desc, drawing)
-        result = {"status": "done", "message": "drawn to the end", "summary": summary}
+            if job.get("park"):
+                summary = play_on_arm(cfg, out, desc, drawing, park=True)
+            else:
+                summary = play(cfg, out, desc, drawing)
+        result = ({"status": "stopped", "message": f"stopped: {summary['reason']}",
+                   "summary": summary} if job.get("park") else
+                  {"status": "done", "message": "drawn to the end", "summary": summary})
     except Interrupted as exc:  # a stop request: the needle lifted, every output off
         result = {"status": "paused", "message": str(exc)}
     except KeyboardInterrupt:  # before the session took over its signals, or after
@@ -121,7 +130,8 @@ def _state_status(job: JobSpec, folder: Path) -> str | None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the job of the folder ``argv[0]``: 0 done, 3 paused, 1 failed."""
+    """Run the job of the folder ``argv[0]``: 0 done (or stopped by a park), 3 paused,
+    1 failed."""
     args = sys.argv[1:] if argv is None else argv
     if len(args) != 1:
         print("usage: python -m tattotronix.server.runner JOB_FOLDER", file=sys.stderr)
@@ -130,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(filename=folder / LOG_FILE, level=logging.INFO,
                         format="%(asctime)s %(name)s: %(message)s")
     result = run_job(folder)
-    return {"done": 0, "paused": 3}.get(str(result["status"]), 1)
+    return {"done": 0, "stopped": 0, "paused": 3}.get(str(result["status"]), 1)
 
 
 if __name__ == "__main__":
