@@ -44,13 +44,13 @@ from types import FrameType
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:  # the API's names, typed, for a type checker (loaded on first use)
-    from tattotronix.app.api import Arm, Plan, plan, plan_strokes  # noqa: F401
+    from tattotronix.app.api import Arm, Draft, Plan, draft, plan, plan_strokes  # noqa: F401
 
 __version__ = "0.1.0"
 
 #: the Python API (:mod:`tattotronix.app.api`), imported on first use, so that importing
 #: the package (every stage does, first) stays light
-_API = ("Arm", "Plan", "plan", "plan_strokes")
+_API = ("Arm", "Draft", "Plan", "draft", "plan", "plan_strokes")
 
 
 def __getattr__(name: str) -> object:

@@ -92,6 +92,25 @@ def test_plan_is_the_pipelines_plan(tmp_path: Path) -> None:
     assert prov["inputs"]["urdf"]["path"] == "robot/tattotronix.urdf"
     png = d.preview(tmp_path / "p" / "preview.png")
     assert png.stat().st_size > 10_000
+    draft = tt.draft(art, width_mm=24)  # the same toolpath, untimed
+    assert draft.ok and np.array_equal(draft.toolpath.path.uvz_mm, d.toolpath.path.uvz_mm)
+    assert {k: draft.stats[k] for k in ("entries", "marked_mm", "travel_mm")} == {
+        k: d.stats[k] for k in ("entries", "marked_mm", "travel_mm")}
+    assert draft.preview(tmp_path / "draft.png").stat().st_size > 10_000
+
+
+def test_a_draft_names_what_planning_would_refuse(tmp_path: Path) -> None:
+    art = small_art(tmp_path / "small.png")
+    off = tt.draft(art, width_mm=24, overrides=["mask.anchor=centre", "mask.at_mm=[95,0]"])
+    assert not off.ok and off.drafted is None
+    with pytest.raises(TattotronixError) as err:
+        tt.plan(art, width_mm=24, overrides=["mask.anchor=centre", "mask.at_mm=[95,0]"])
+    assert off.problem == str(err.value) and "off the" in off.problem
+    with pytest.raises(TattotronixError, match="off the"):
+        off.toolpath  # noqa: B018
+    assert off.stats == {"name": "small", "ok": False, "problem": off.problem}
+    with pytest.raises(ConfigError):
+        tt.draft(art, overrides=["toolpath.pitch_mm=-1"])
 
 
 @pytest.mark.slow

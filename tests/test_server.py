@@ -16,6 +16,7 @@ from typing import Any
 
 import pytest
 from fastapi.testclient import TestClient
+from PIL import Image, ImageDraw
 from starlette.websockets import WebSocketDisconnect
 
 from tattotronix.errors import TattotronixError
@@ -185,8 +186,46 @@ def test_a_plan_its_preview_and_its_path(tmp_path: Path, art: bytes) -> None:
                   "/api/plans/{pid}/preview.png", "/api/plans/{pid}/path", "/api/jobs",
                   "/api/jobs/current", "/api/jobs/current/pause",
                   "/api/jobs/current/resume", "/api/jobs/current/stop",
-                  "/api/plans/{pid}/predict", "/api/plans/{pid}/servo/{image}"):
+                  "/api/plans/{pid}/predict", "/api/plans/{pid}/servo/{image}",
+                  "/api/drafts"):
         assert route in schema["paths"], route
+
+
+def test_a_draft_says_what_is_wrong_with_a_placement_at_once(tmp_path: Path,
+                                                               art: bytes) -> None:
+    c = _client(tmp_path)
+
+    def draft(**form: str) -> dict[str, Any]:
+        r = c.post("/api/drafts", files={"file": ("small.png", art, "image/png")},
+                   data={"width_mm": "24", **form})
+        assert r.status_code == 200, r.text
+        return dict(r.json())
+
+    ok = draft(u_mm="5", v_mm="-3")
+    assert ok["stats"]["ok"] is True and ok["stats"]["problem"] is None
+    assert ok["stats"]["entries"] >= 2 and "duration_s" not in ok["stats"]  # untimed
+    us = [p[0] for p, k in zip(ok["uv"], ok["kind"], strict=True) if k == 1]
+    assert 5 - 14 < min(us) and max(us) < 5 + 14
+    off = draft(u_mm="95", v_mm="0")  # half of it past the panel's right edge (u = 100)
+    assert off["stats"]["ok"] is False and "off the" in off["stats"]["problem"]
+    assert "uv" not in off
+    square = io.BytesIO()  # ink to its corners: one at the panel's far corner
+    img = Image.new("L", (44, 44), 255)
+    ImageDraw.Draw(img).rectangle([2, 2, 41, 41], fill=0)
+    img.save(square, "PNG")
+    r = c.post("/api/drafts", files={"file": ("square.png", square.getvalue(), "image/png")},
+               data={"width_mm": "30", "u_mm": "84.5", "v_mm": "54.5"})
+    far = r.json()["stats"]
+    assert far["ok"] is False and "out of the arm's reach" in far["problem"], far
+    assert c.post("/api/drafts", files={"file": ("a.png", b"GIF89a", "image/gif")}
+                  ).status_code == 415
+    assert c.post("/api/drafts", files={"file": ("a.png", art, "image/png")},
+                  data={"u_mm": "3"}).status_code == 400  # the centre needs u and v
+    r = c.post("/api/drafts", files={"file": ("a.png", art, "image/png")},
+               data={"fill": "zigzag"})
+    assert r.status_code == 422 and "fill" in r.json()["detail"]
+    assert not list((tmp_path / "drafts").iterdir())  # nothing kept
+    assert not list((tmp_path / "plans").iterdir())
 
 
 @pytest.mark.slow

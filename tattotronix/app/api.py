@@ -36,7 +36,12 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from tattotronix.app.draw import play
-from tattotronix.app.pipeline import PlannedDrawing, plan_drawing_all
+from tattotronix.app.pipeline import (
+    DraftedDrawing,
+    PlannedDrawing,
+    draft_drawing,
+    plan_drawing_all,
+)
 from tattotronix.app.records import (
     save_artwork,
     save_ik,
@@ -68,7 +73,7 @@ from tattotronix.robot.mjcf import to_mjcf
 from tattotronix.robot.urdf import to_urdf
 from tattotronix.trajectory import JointPath, Trajectory
 
-__all__ = ["Arm", "Plan", "plan", "plan_strokes", "settings_of", "strokes_svg"]
+__all__ = ["Arm", "Draft", "Plan", "draft", "plan", "plan_strokes", "settings_of", "strokes_svg"]
 
 log = logging.getLogger("tattotronix.api")
 Array = NDArray[np.float64]
@@ -178,11 +183,7 @@ class Plan:
     def preview(self, path: str | Path) -> Path:
         """Draw the toolpath on the panel (marking by kind, travel, needle entries) to a
         PNG at ``path``, as the toolpath stage's ``toolpath.png``; the path."""
-        out = Path(path)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        size = (float(self.cfg.robot.panel.size_mm[0]), float(self.cfg.robot.panel.size_mm[1]))
-        toolpath_figure(self.toolpath, size, out, self.name)
-        return out
+        return _preview(self.cfg, self.toolpath, self.name, path)
 
     def save(self, folder: str | Path) -> Path:
         """Write the files the stages from ``artwork`` to ``trajectory`` write, laid out as
@@ -285,6 +286,97 @@ class Plan:
         needle lifted and every output off; ``Arm(resume=True)`` continues); the
         session's summary."""
         return self._play((arm or Arm()).settings())
+
+
+def _preview(cfg: Config, toolpath: Toolpath, name: str, path: str | Path) -> Path:
+    out = Path(path)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    size = (float(cfg.robot.panel.size_mm[0]), float(cfg.robot.panel.size_mm[1]))
+    toolpath_figure(toolpath, size, out, name)
+    return out
+
+
+@dataclass(frozen=True)
+class Draft:
+    """An artwork placed and turned into a toolpath, not yet timed (:func:`draft`), or what
+    is wrong with the placement.
+
+    Attributes:
+        name: names the outputs.
+        cfg: the settings; overrides: the overrides that made them.
+        problem: why it cannot be planned (off the panel, out of reach, no ink, a needle
+            too wide, unreadable art), in the words :func:`plan` would raise; None: none.
+        drafted: the artwork, mask and toolpath (None when there is a problem).
+    """
+
+    name: str
+    cfg: Config
+    overrides: tuple[str, ...]
+    problem: str | None
+    drafted: DraftedDrawing | None
+
+    @property
+    def ok(self) -> bool:
+        """It can be planned as placed."""
+        return self.problem is None
+
+    @property
+    def toolpath(self) -> Toolpath:
+        """The toolpath (panel mm).
+
+        Raises:
+            TattotronixError: the draft's problem, if it has one.
+        """
+        if self.drafted is None:
+            raise TattotronixError(self.problem or "no toolpath")
+        return self.drafted.toolpath
+
+    @property
+    def stats(self) -> JsonDict:
+        """``ok``, ``problem``, and with a toolpath its ``entries``, ``drags``,
+        ``marked_mm``, ``travel_mm`` and ``points`` (as :attr:`Plan.stats`; the timing
+        comes with the plan)."""
+        out: JsonDict = {"name": self.name, "ok": self.ok, "problem": self.problem}
+        if self.drafted is not None:
+            m = self.drafted.toolpath.metrics
+            out.update(entries=int(m.entries), drags=int(m.drags),
+                       marked_mm=round(float(m.marked_mm), 3),
+                       travel_mm=round(float(m.travel_mm), 3),
+                       points=int(len(self.drafted.toolpath.path.kind)))
+        return out
+
+    def preview(self, path: str | Path) -> Path:
+        """The toolpath on the panel as a PNG (:meth:`Plan.preview`).
+
+        Raises:
+            TattotronixError: the draft's problem, if it has one.
+        """
+        return _preview(self.cfg, self.toolpath, self.name, path)
+
+
+def draft(source: str | Path, *, width_mm: float | None = None,
+          height_mm: float | None = None, rotate_deg: float | None = None,
+          fill: str | None = None, vector: bool | None = None, name: str | None = None,
+          overrides: Sequence[str] = ()) -> Draft:
+    """The toolpath of an artwork as placed, in a fraction of :func:`plan`'s time (no joint
+    angles, no timing): for a page that shows the placement's problems (off the panel, out
+    of reach) and the toolpath at once, while the plan is made. Takes :func:`plan`'s
+    arguments; what planning would refuse is the draft's ``problem``, not an exception.
+
+    Raises:
+        ConfigError: an unknown setting or a value out of range.
+    """
+    keywords: dict[str, object] = {"width_mm": width_mm, "height_mm": height_mm,
+                                   "rotate_deg": rotate_deg, "fill": fill, "vector": vector}
+    cfg, items = _settings(source, name, keywords, overrides)
+    label = artwork_name(cfg.artwork)
+    try:
+        drafted: DraftedDrawing | None = draft_drawing(cfg, source, label,
+                                                       build_description(cfg.robot))
+        problem = None
+    except TattotronixError as exc:
+        drafted, problem = None, str(exc)
+    return Draft(label, cfg, tuple(items), problem, drafted)
 
 
 def _window(window: Sequence[float] | str | None) -> list[str]:

@@ -30,8 +30,8 @@ from tattotronix.trajectory import JointLimits, JointPath, Trajectory, Trajector
 from tattotronix.trajectory import plan_trajectory as _plan_trajectory
 from tattotronix.trajectory.travel import TravelPlanner
 
-__all__ = ["PlannedDrawing", "artwork_inputs", "check_reach", "drawing_inputs",
-           "mask_of", "plan_drawing", "plan_drawing_all", "plan_drawing_on", "solve_ik",
+__all__ = ["DraftedDrawing", "PlannedDrawing", "artwork_inputs", "check_reach", "draft_drawing",
+           "drawing_inputs", "mask_of", "plan_drawing", "plan_drawing_all", "plan_drawing_on", "solve_ik",
            "straight_travel_baseline", "trajectory_from_path", "travel_planner"]
 
 log = logging.getLogger("tattotronix.app.pipeline")
@@ -196,6 +196,34 @@ def plan_drawing_on(cfg: Config, source: str | Path | None, name: str,
 
 
 @dataclass(frozen=True)
+class DraftedDrawing:
+    """The steps of a drawing up to its toolpath (no joint angles, no timing): the artwork
+    on its grid and its vector lines (None unless ``artwork.vector``), the ink mask, and
+    the toolpath (the needle's width checked against the artwork)."""
+
+    artwork: Artwork
+    lines: VectorLines | None
+    mask: InkMask
+    toolpath: Toolpath
+
+
+def draft_drawing(cfg: Config, source: str | Path | None, name: str,
+                  desc: RobotDescription) -> DraftedDrawing:
+    """The artwork, mask and toolpath stages in memory: a fifth of a plan's time, what a
+    page shows while the plan is timed.
+
+    Raises:
+        TattotronixError: unreadable art, no ink, a drawing off the panel or out of reach,
+            a needle too wide for it.
+    """
+    art, mask, vector = artwork_inputs(cfg, source, name, desc)
+    params = ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel)
+    tp = plan_toolpath(mask, params, vector=vector)
+    check_needle(tp, mask, params.needle_width_mm, cfg.toolpath.ink_res_mm)
+    return DraftedDrawing(art, vector, mask, tp)
+
+
+@dataclass(frozen=True)
 class PlannedDrawing:
     """Every step of a drawing planned in memory: the artwork on its grid and its vector
     lines (None unless ``artwork.vector``), the ink mask it was planned on, the toolpath,
@@ -217,14 +245,12 @@ def plan_drawing_all(cfg: Config, source: str | Path | None, name: str,
     Raises:
         TattotronixError: as :func:`plan_drawing`.
     """
-    art, mask, vector = artwork_inputs(cfg, source, name, desc)
-    params = ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel)
-    tp = plan_toolpath(mask, params, vector=vector)
-    check_needle(tp, mask, params.needle_width_mm, cfg.toolpath.ink_res_mm)
+    d = draft_drawing(cfg, source, name, desc)
+    tp = d.toolpath
     chain = Chain.from_description(desc)
     res = solve_ik(chain, tp.xyz_m, tp.path.uvz_mm, cfg.ik)
     tcp, _ = chain.fk(res.q)
     path = JointPath.from_arrays(desc.joint_names, res.q, tcp, tp.path.kind, tp.path.uvz_mm)
     traj = trajectory_from_path(cfg, path, desc)
     log.info("planned %s in memory: %d points, %.1f s", name, len(traj.t), traj.duration_s)
-    return PlannedDrawing(art, vector, mask, tp, res, path, traj)
+    return PlannedDrawing(d.artwork, d.lines, d.mask, tp, res, path, traj)

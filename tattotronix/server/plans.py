@@ -27,11 +27,12 @@ from typing import Any
 
 import numpy as np
 
-from tattotronix.app.api import Plan, plan, plan_strokes
+from tattotronix.app.api import Plan, draft, plan, plan_strokes
 from tattotronix.config.schema import FillStyle
 from tattotronix.errors import ConfigError, TattotronixError
 from tattotronix.io.artifacts import run_dir, run_label
 from tattotronix.io.jsontypes import JsonDict
+from tattotronix.path.plan import Toolpath
 
 __all__ = ["MAX_UPLOAD_BYTES", "PlanRefused", "PlanRequest", "PlanStore", "UploadRefused",
            "sniff_kind"]
@@ -149,6 +150,45 @@ class PlanStore:
                 f"{self.max_upload_bytes / 1e6:.1f} MB (tattotronix serve --max-upload-mb)",
                 413)
 
+    def _checked(self, data: bytes, req: PlanRequest) -> str:
+        self.check_size(len(data))
+        kind = sniff_kind(data)
+        if req.fill is not None and req.fill not in _FILLS:
+            raise PlanRefused(f"fill '{req.fill}': use one of {', '.join(_FILLS)}")
+        return kind
+
+    def draft(self, data: bytes, filename: str | None, req: PlanRequest) -> JsonDict:
+        """An uploaded artwork placed as asked, drafted (:func:`tattotronix.draft`: the
+        toolpath, no timing) and not kept: ``ok``, the ``problem`` planning would refuse
+        (off the panel, out of reach, ...), and with a toolpath its stats and path (as
+        :meth:`path`). What a page shows as the placement changes, at once.
+
+        Raises:
+            UploadRefused: too large, empty, or not a PNG, JPEG or SVG.
+            PlanRefused: a fill style or setting out of range.
+        """
+        kind = self._checked(data, req)
+        name = safe_name(req.name or filename)
+        folder = self.folder.parent / "drafts" / secrets.token_hex(6)
+        folder.mkdir(parents=True)
+        source = folder / f"{name}.{kind}"
+        source.write_bytes(data)
+        try:
+            with self._lock:
+                made = draft(source, width_mm=req.width_mm, rotate_deg=req.rotate_deg,
+                             fill=req.fill, vector=req.vector, name=name,
+                             overrides=req.overrides())
+        except ConfigError as exc:
+            raise PlanRefused(str(exc)) from None
+        finally:
+            source.unlink(missing_ok=True)
+            folder.rmdir()
+        out: JsonDict = {"stats": made.stats,
+                         "panel_mm": [float(x) for x in made.cfg.robot.panel.size_mm[:2]]}
+        if made.drafted is not None:
+            out.update(path_for_page(made.toolpath))
+        return out
+
     def create(self, data: bytes, filename: str | None, req: PlanRequest) -> StoredPlan:
         """Store an uploaded artwork and plan it.
 
@@ -156,10 +196,7 @@ class PlanStore:
             UploadRefused: too large, empty, or not a PNG, JPEG or SVG.
             PlanRefused: what the artwork loader or planning refuses, in one message.
         """
-        self.check_size(len(data))
-        kind = sniff_kind(data)
-        if req.fill is not None and req.fill not in _FILLS:
-            raise PlanRefused(f"fill '{req.fill}': use one of {', '.join(_FILLS)}")
+        kind = self._checked(data, req)
         name = safe_name(req.name or filename)
         pid, folder = self._new_folder()
         source = folder / f"{name}.{kind}"
@@ -260,12 +297,19 @@ class PlanStore:
         stored = self._plans.get(pid)
         if stored is None:
             return None
-        p = stored.plan.toolpath.path
-        kind = np.asarray(p.kind)
-        keep = np.zeros(len(kind), bool)
-        keep[:: max(1, len(kind) // PATH_POINTS)] = True
-        keep[[0, -1]] = True
-        keep[1:] |= kind[1:] != kind[:-1]  # where the kind changes
-        keep[:-1] |= kind[1:] != kind[:-1]
-        uv = np.round(np.asarray(p.uvz_mm)[keep, :2], 3)
-        return {"id": pid, "uv": uv.tolist(), "kind": kind[keep].astype(int).tolist()}
+        return {"id": pid, **path_for_page(stored.plan.toolpath)}
+
+
+def path_for_page(toolpath: Toolpath) -> JsonDict:
+    """A toolpath for the page: ``uv``, panel ``(u, v)`` mm, and each point's ``kind`` (0
+    travel, 1 mark, 2 approach), thinned to about :data:`PATH_POINTS` points (every needle
+    entry and lift kept)."""
+    p = toolpath.path
+    kind = np.asarray(p.kind)
+    keep = np.zeros(len(kind), bool)
+    keep[:: max(1, len(kind) // PATH_POINTS)] = True
+    keep[[0, -1]] = True
+    keep[1:] |= kind[1:] != kind[:-1]  # where the kind changes
+    keep[:-1] |= kind[1:] != kind[:-1]
+    uv = np.round(np.asarray(p.uvz_mm)[keep, :2], 3)
+    return {"uv": uv.tolist(), "kind": kind[keep].astype(int).tolist()}

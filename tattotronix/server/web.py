@@ -164,25 +164,27 @@ def create_app(folder: Path, *, token: str | None = None,
     @app.post("/api/plans", status_code=201, dependencies=[Auth])
     async def create_plan(
         file: Annotated[UploadFile, File(description="a PNG, JPEG or SVG")],
-        width_mm: Annotated[float | None, Form(gt=0)] = None,
-        rotate_deg: Annotated[float | None, Form()] = None,
-        u_mm: Annotated[float | None, Form()] = None,
-        v_mm: Annotated[float | None, Form()] = None,
-        fill: Annotated[str | None, Form()] = None,
-        vector: Annotated[bool | None, Form()] = None,
-        name: Annotated[str | None, Form()] = None,
+        req: Annotated[PlanRequest, Depends(_placement)],
     ) -> dict[str, Any]:
         """Plan an uploaded artwork placed on the panel: its width, turn and centre
         ``(u_mm, v_mm)`` (both or neither), fill style and vector mode; the plan's id and
         stats (entries, marked and travel length, duration, bleed, coverage)."""
-        if (u_mm is None) != (v_mm is None):
-            raise HTTPException(400, "give the centre as both u_mm and v_mm, or neither")
         data = await _read_limited(file, plans)
-        req = PlanRequest(width_mm=width_mm, rotate_deg=rotate_deg,
-                          at_mm=None if u_mm is None or v_mm is None else (u_mm, v_mm),
-                          fill=fill, vector=vector, name=name)
         stored = await asyncio.to_thread(plans.create, data, file.filename, req)
         return stored.info
+
+    @app.post("/api/drafts", dependencies=[Auth])
+    async def create_draft(
+        file: Annotated[UploadFile, File(description="a PNG, JPEG or SVG")],
+        req: Annotated[PlanRequest, Depends(_placement)],
+    ) -> dict[str, Any]:
+        """Check a placement at once, before planning (the fields of ``POST /api/plans``):
+        ``stats.ok``, ``stats.problem`` (off the panel, out of reach, no ink, ...: what
+        planning would refuse), and with a toolpath its entries, marked and travel length
+        and its path (``uv``, ``kind``, as ``GET /api/plans/{pid}/path``). Nothing is kept
+        and nothing is timed: a fraction of a plan's time."""
+        data = await _read_limited(file, plans)
+        return dict(await asyncio.to_thread(plans.draft, data, file.filename, req))
 
     @app.post("/api/plans/strokes", status_code=201, dependencies=[Auth])
     async def create_strokes(body: StrokesIn) -> dict[str, Any]:
@@ -303,6 +305,24 @@ def create_app(folder: Path, *, token: str | None = None,
             return
 
     return app
+
+
+def _placement(
+    width_mm: Annotated[float | None, Form(gt=0, description="its width, mm")] = None,
+    rotate_deg: Annotated[float | None, Form(description="its turn, degrees")] = None,
+    u_mm: Annotated[float | None, Form(description="its centre's u, mm")] = None,
+    v_mm: Annotated[float | None, Form(description="its centre's v, mm")] = None,
+    fill: Annotated[str | None, Form(description="the fill style")] = None,
+    vector: Annotated[bool | None, Form(description="an SVG's paths as lines")] = None,
+    name: Annotated[str | None, Form(description="names its files")] = None,
+) -> PlanRequest:
+    """A placement from a form's fields (the centre as both ``u_mm`` and ``v_mm``, or
+    neither)."""
+    if (u_mm is None) != (v_mm is None):
+        raise HTTPException(400, "give the centre as both u_mm and v_mm, or neither")
+    return PlanRequest(width_mm=width_mm, rotate_deg=rotate_deg,
+                       at_mm=None if u_mm is None or v_mm is None else (u_mm, v_mm),
+                       fill=fill, vector=vector, name=name)
 
 
 def _same_origin(headers: Any) -> bool:
