@@ -132,6 +132,7 @@ def test_bad_uploads_get_one_message(tmp_path: Path, data: bytes, status: int,
     detail = r.json()["detail"]
     assert isinstance(detail, str) and match.lower() in detail.lower(), detail
     assert "\n" not in detail.strip()
+    assert list((tmp_path / "plans").iterdir()) == []  # a refused upload is not kept
 
 
 def test_an_upload_over_the_limit_is_refused_and_stored_nowhere(tmp_path: Path,
@@ -181,6 +182,12 @@ def test_a_plan_its_preview_and_its_path(tmp_path: Path, art: bytes) -> None:
     stored = tmp_path / "plans" / info["id"]
     assert (stored / "small.png").read_bytes() == art
     assert (stored / "data" / "trajectories" / "small.npz").is_file()
+    traj = (stored / "data" / "trajectories" / "small.npz").read_bytes()
+    again = _client(tmp_path)  # a restarted server plans it again on first use
+    assert again.get(f"/api/plans/{info['id']}").json() == info
+    assert again.get(f"/api/plans/{info['id']}/path").json() == path
+    assert (stored / "data" / "trajectories" / "small.npz").read_bytes() == traj
+    assert again.get("/api/plans/..%2F..%2Fjobs").status_code == 404
     schema = c.get("/openapi.json").json()
     for route in ("/api/plans", "/api/plans/strokes", "/api/plans/{pid}",
                   "/api/plans/{pid}/preview.png", "/api/plans/{pid}/path", "/api/jobs",

@@ -5,7 +5,8 @@ SVG by its first bytes (whatever its name says); what the artwork loader refuses
 decompression bomb, an SVG's external reference, a corrupt file) and what planning
 refuses (off the panel, out of reach, a setting out of range) comes back as one message.
 Everything is stored under the server's folder (``plans/<id>/``), never where the
-pipeline writes.
+pipeline writes; a refused upload is not kept. Plans outlive the server: a restarted one
+plans a stored plan again on its first use.
 
 A plan is :func:`tattotronix.plan` of the stored file with the placement asked for; its
 stages' files are saved (:meth:`tattotronix.app.api.Plan.save`) under ``plans/<id>/data``
@@ -19,6 +20,7 @@ import json
 import logging
 import re
 import secrets
+import shutil
 import threading
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -44,6 +46,9 @@ MAX_UPLOAD_BYTES = 8 * 1024 * 1024
 #: points of a plan's path sent to the page (every one would be megabytes)
 PATH_POINTS = 4000
 _NAME = re.compile(r"[^A-Za-z0-9_-]+")
+_PID = re.compile(r"[0-9a-f]{12}")  # secrets.token_hex(6)
+#: what a plan's folder says of it (its id, name, kind, stats and settings)
+PLAN_FILE = "plan.json"
 #: the images a run writes: its ink, against the plan's, against the artwork
 RUN_IMAGES = ("ink.png", "ink_vs_plan.png", "ink_vs_artwork.png")
 _FILLS = tuple(f.value for f in FillStyle)  # toolpath.fill_style
@@ -225,30 +230,61 @@ class PlanStore:
         folder.mkdir(parents=True)
         return pid, folder
 
-    def _make(self, pid: str, folder: Path, kind: str, make: Any) -> StoredPlan:
+    def _make(self, pid: str, folder: Path, kind: str, make: Any, *,
+              keep_on_refusal: bool = False) -> StoredPlan:
         with self._lock:
             try:
                 made: Plan = make()
                 made.save(folder / "data")
             except (TattotronixError, ConfigError) as exc:
                 log.info("plan %s refused: %s", pid, exc)
+                if not keep_on_refusal:  # a new upload's: nothing of it is kept
+                    shutil.rmtree(folder, ignore_errors=True)
                 raise PlanRefused(str(exc)) from None
         stored = StoredPlan(pid, made, folder, kind)
         stored.info = {"id": pid, "name": made.name, "kind": kind, "stats": made.stats,
                        "panel_mm": [float(x) for x in made.cfg.robot.panel.size_mm[:2]],
                        "overrides": list(made.overrides)}
-        (folder / "plan.json").write_text(json.dumps(stored.info, indent=1) + "\n")
+        (folder / PLAN_FILE).write_text(json.dumps(stored.info, indent=1) + "\n")
         self._plans[pid] = stored
         log.info("plan %s: %s, %s", pid, made.name, made.stats)
         return stored
 
     def get(self, pid: str) -> StoredPlan | None:
-        """The plan ``pid`` made since the server started (None: no such plan)."""
-        return self._plans.get(pid)
+        """The plan ``pid`` (None: no such plan). One made before the server (re)started
+        is planned again from its stored artwork and settings, once, on first use, and its
+        files saved again (the same files, unless the code changed)."""
+        stored = self._plans.get(pid)
+        if stored is None and _PID.fullmatch(pid) and (self.folder / pid / PLAN_FILE).is_file():
+            stored = self._reload(pid)
+        return stored
+
+    def _reload(self, pid: str) -> StoredPlan | None:
+        folder = self.folder / pid
+        try:
+            info = json.loads((folder / PLAN_FILE).read_text(encoding="utf-8"))
+            items = [str(x) for x in info["overrides"]]
+            source = next(x.split("=", 1)[1] for x in items
+                          if x.startswith("artwork.source="))
+            rest = [x for x in items if not x.startswith(("artwork.source=", "artwork.name="))]
+            kind, name = str(info["kind"]), str(info["name"])
+        except (OSError, ValueError, KeyError, TypeError, StopIteration) as exc:
+            log.warning("plan %s: its %s is unreadable (%s)", pid, PLAN_FILE, exc)
+            return None
+        if not Path(source).is_file():
+            log.warning("plan %s: its artwork %s is gone", pid, source)
+            return None
+        workdir = folder if kind == "strokes" else folder / "runs"
+        try:
+            return self._make(pid, folder, kind, lambda: plan(
+                source, name=name, overrides=rest, workdir=workdir), keep_on_refusal=True)
+        except PlanRefused as exc:
+            log.warning("plan %s: planned again, it is refused: %s", pid, exc)
+            return None
 
     def preview(self, pid: str) -> Path | None:
         """The plan's toolpath on the panel as a PNG (made once); None: no such plan."""
-        stored = self._plans.get(pid)
+        stored = self.get(pid)
         if stored is None:
             return None
         png = stored.folder / "preview.png"
@@ -265,7 +301,7 @@ class PlanStore:
         Raises:
             PlanRefused: an unknown servo type, or what the run refuses.
         """
-        stored = self._plans.get(pid)
+        stored = self.get(pid)
         if stored is None:
             return None
         with self._lock:
@@ -284,7 +320,7 @@ class PlanStore:
 
     def run_image(self, pid: str, backend: str, image: str) -> Path | None:
         """One of :data:`RUN_IMAGES` of the plan's last run on ``backend`` (None: none)."""
-        stored = self._plans.get(pid)
+        stored = self.get(pid)
         if stored is None or image not in RUN_IMAGES:
             return None
         file = self.run_folder(stored, backend) / image
@@ -294,7 +330,7 @@ class PlanStore:
         """The plan's path for the page: panel ``(u, v)`` mm and each point's kind (0
         travel, 1 mark, 2 approach), thinned to about :data:`PATH_POINTS` points (every
         needle entry and lift kept); None: no such plan."""
-        stored = self._plans.get(pid)
+        stored = self.get(pid)
         if stored is None:
             return None
         return {"id": pid, **path_for_page(stored.plan.toolpath)}

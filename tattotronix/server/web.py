@@ -196,7 +196,7 @@ def create_app(folder: Path, *, token: str | None = None,
     def _plan(pid: str) -> Any:
         stored = plans.get(pid)
         if stored is None:
-            raise HTTPException(404, f"no plan {pid!r} (plans last as long as the server)")
+            raise HTTPException(404, f"no plan {pid!r}")
         return stored
 
     @app.get("/api/plans/{pid}", dependencies=[Auth])
