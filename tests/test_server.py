@@ -331,6 +331,9 @@ def test_a_restarted_server_offers_to_resume_a_job_its_crash_cut(tmp_path: Path,
     assert again.post("/api/jobs/current/resume").status_code == 200
     done = _wait(again, lambda s: s["status"] in ("done", "failed"), timeout=300)
     assert done["status"] == "done" and done["frame"] == done["frames"], done
+    (runs,) = (tmp_path / "jobs" / done["id"] / "metrics" / "runs").glob("*-arm.json")
+    late = json.loads(runs.read_text())["late_ms"]  # paced: how late the frames went out
+    assert -1.0 < late["median"] <= late["p99"] <= late["worst"]
 
 
 @pytest.mark.slow

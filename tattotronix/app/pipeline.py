@@ -30,9 +30,10 @@ from tattotronix.trajectory import JointLimits, JointPath, Trajectory, Trajector
 from tattotronix.trajectory import plan_trajectory as _plan_trajectory
 from tattotronix.trajectory.travel import TravelPlanner
 
-__all__ = ["DraftedDrawing", "PlannedDrawing", "artwork_inputs", "check_reach", "draft_drawing",
-           "drawing_inputs", "mask_of", "plan_drawing", "plan_drawing_all", "plan_drawing_on", "solve_ik",
-           "straight_travel_baseline", "trajectory_from_path", "travel_planner"]
+__all__ = ["DraftedDrawing", "PlannedDrawing", "artwork_inputs", "check_reach",
+           "draft_drawing", "drawing_inputs", "mask_of", "plan_drawing", "plan_drawing_all",
+           "plan_drawing_on", "solve_ik", "straight_travel_baseline", "trajectory_from_path",
+           "travel_planner"]
 
 log = logging.getLogger("tattotronix.app.pipeline")
 

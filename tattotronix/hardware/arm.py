@@ -494,16 +494,20 @@ class _Stream:
         self.sent = 0
         self.writes = 0
         self.by_phase: dict[str, int] = {}
+        self.late_s: list[float] = []  # how late each paced frame went out, s
         self._next = time.perf_counter()
 
     def send(self, q: Array, phase: str, frame: int | None = None,
              counts: dict[int, int] | None = None) -> None:
         counts = counts if counts is not None else self.calib.counts(q, self.count_us)
         if self.realtime:
-            delay = self._next - time.perf_counter()
+            due = self._next
+            delay = due - time.perf_counter()
             if delay > 0:
                 time.sleep(delay)
-            self._next = max(self._next + self.period, time.perf_counter() - self.period)
+            now = time.perf_counter()
+            self.late_s.append(now - due)
+            self._next = max(due + self.period, now - self.period)
         for ch, c in counts.items():
             if self.last.get(ch) != c:
                 self.board.set_counts(ch, c)
@@ -928,6 +932,12 @@ class ArmSession:
             "frames_sent": stream.sent if stream else 0,
             "channel_writes": stream.writes if stream else 0,
             "session": state.session, "wall_s": wall_s, "program": state.program}
+        if stream is not None and stream.late_s:  # paced: how late the frames went out
+            late = np.asarray(stream.late_s) * 1e3
+            summary["late_ms"] = {"median": round(float(np.median(late)), 3),
+                                  "p99": round(float(np.percentile(late, 99)), 3),
+                                  "worst": round(float(late.max()), 3),
+                                  "over_a_frame": int((late > 1e3 * stream.period).sum())}
         if run.stopped_in == "park":
             summary["status"] = "parked"
             return summary
