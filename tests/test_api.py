@@ -45,6 +45,7 @@ def test_readme_example_runs_as_written(tmp_path: Path) -> None:
         "\nimport json\n"
         "json.dump({'stats': d.stats, 'run': run['verdict'], 'max': run['marking_max_um'],\n"
         "           'real': real['verdict'], 'arm': arm['status'], 'strokes': s.stats,\n"
+        "           'draft': [p.ok, p.problem],\n"
         "           'workdir': str(d.workdir)}, open('out.json', 'w'))\n"))
     env = {k: v for k, v in os.environ.items() if k != "TATTOTRONIX_CAD_DIR"}
     env["MPLBACKEND"] = "Agg"
@@ -58,6 +59,7 @@ def test_readme_example_runs_as_written(tmp_path: Path) -> None:
     assert out["real"] in ("ok", "out-of-tolerance")  # hobby servos miss by millimetres
     assert out["arm"] == "done"
     assert out["strokes"]["entries"] == 2
+    assert out["draft"][0] is False and "off the" in out["draft"][1]
     assert (tmp_path / "preview.png").stat().st_size > 10_000
     with np.load(tmp_path / "logo" / "trajectories" / "logo.npz", allow_pickle=False) as z:
         assert {"joints", "t", "q", "qd", "qdd", "kind", "marked", "tcp",
