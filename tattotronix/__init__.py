@@ -21,7 +21,8 @@ at any depth (``lint-imports``, with the contracts in ``pyproject.toml``). Top t
 * ``collision``: the collision model, its pairs and the trajectory check, on the robot.
 * ``kinematics``: the chain and the IK, which solve the toolpath's points (and read their kinds).
 * ``path``: the artwork's ink mask to a toolpath on the panel.
-* ``robot | art``: the two independent inputs: the robot description and models, the artwork.
+* ``robot | art | surface``: the independent inputs: the robot description and models, the
+  artwork, and a work surface beyond the panel (a design's chart on it).
 * ``config``: the Hydra config and its typed schema, read by every layer above.
 * ``io | plotting``: independent leaf utilities: output files and provenance, matplotlib helpers.
 * ``errors``: the exceptions every layer raises; imports nothing of the project.
