@@ -314,17 +314,25 @@ def test_a_job_pauses_with_the_needle_up_resumes_and_stops(tmp_path: Path, art: 
     assert st["frame"] == st["frames"] and st["share"] == 1.0
 
 
-@pytest.mark.slow
-def test_a_restarted_server_offers_to_resume_a_job_its_crash_cut(tmp_path: Path,
-                                                                  art: bytes) -> None:
+def _crash_mid_job(tmp_path: Path, art: bytes,
+                   until: Callable[[dict[str, Any]], bool]) -> TestClient:
+    """Start a job, wait ``until`` its state says so, kill its runner (SIGKILL: it dies
+    with the server, a power cut), and restart the server on its folder."""
     c = _client(tmp_path)
     pid = _plan(c, art)["id"]
     assert c.post("/api/jobs", json={"plan": pid}).status_code == 201
-    st = _wait(c, lambda s: s["status"] == "drawing" and s["frame"] > 10)
+    st = _wait(c, until)
     doc = json.loads((tmp_path / "jobs" / st["id"] / "job.json").read_text())
-    os.kill(doc["pid"], signal.SIGKILL)  # the runner dies with the server (a power cut)
+    os.kill(doc["pid"], signal.SIGKILL)
     time.sleep(0.5)
-    again = _client(tmp_path)  # the server restarted on its folder
+    return _client(tmp_path)
+
+
+@pytest.mark.slow
+def test_a_restarted_server_offers_to_resume_a_job_its_crash_cut(tmp_path: Path,
+                                                                  art: bytes) -> None:
+    again = _crash_mid_job(tmp_path, art,
+                           lambda s: s["status"] == "drawing" and s["frame"] > 10)
     st = again.get("/api/jobs/current").json()
     assert st["status"] == "resumable" and "resume" in st["message"]
     assert st["arm_status"] == "drawing"  # what a session that died leaves
@@ -339,15 +347,8 @@ def test_a_restarted_server_offers_to_resume_a_job_its_crash_cut(tmp_path: Path,
 @pytest.mark.slow
 def test_stopping_a_job_whose_process_died_lifts_the_needle_first(tmp_path: Path,
                                                                    art: bytes) -> None:
-    c = _client(tmp_path)
-    pid = _plan(c, art)["id"]
-    assert c.post("/api/jobs", json={"plan": pid}).status_code == 201
-    st = _wait(c, lambda s: s["status"] == "drawing" and s["frame"] > 10 and
-               s["tip_mm"][2] < 0.5)  # the needle in the work
-    doc = json.loads((tmp_path / "jobs" / st["id"] / "job.json").read_text())
-    os.kill(doc["pid"], signal.SIGKILL)
-    time.sleep(0.5)
-    again = _client(tmp_path)
+    again = _crash_mid_job(tmp_path, art, lambda s: s["status"] == "drawing"
+                           and s["frame"] > 10 and s["tip_mm"][2] < 0.5)  # needle in
     assert again.get("/api/jobs/current").json()["status"] == "resumable"
     r = again.post("/api/jobs/current/stop")
     assert r.status_code == 200 and r.json()["status"] == "stopping"
