@@ -380,30 +380,54 @@ def _box_filter_law(t: Array, s: Array, v: Array, u: Array, window: float
                         np.where(after, cum[-1] + s_end * (tq - t_end), area))
         return pos, vel, area
 
-    def area(tq: Array) -> Array:  # at(tq)[2] alone, the same arithmetic
+    def area_pos(tq: Array) -> tuple[Array, Array, Array]:  # at(tq), area first
         k = np.searchsorted(t, tq, side="right") - 1
         np.maximum(k, 0, out=k)  # np.clip's, without its per-call checks
         np.minimum(k, n_pts - 2, out=k)
         tau = tq - t[k]
-        inside = cum[k] + s[k] * tau + v[k] * tau**2 / 2 + u[k] * tau**3 / 6
-        return np.where(tq < 0.0, s[0] * tq,
-                        np.where(tq > t_end, cum[-1] + s_end * (tq - t_end), inside))
+        sk, vk, uk = s[k], v[k], u[k]
+        vel = vk + uk * tau
+        pos = sk + tau * (vk + vel) / 2
+        inside = cum[k] + tau * (sk + tau * (vk / 2 + uk * tau / 6))
+        before, after = tq < 0.0, tq > t_end
+        out = before | after
+        return (np.where(before, s[0] * tq,
+                         np.where(after, cum[-1] + s_end * (tq - t_end), inside)),
+                np.where(before, s[0], np.where(after, s_end, pos)),
+                np.where(out, 0.0, vel))
 
     half = window / 2
-    # s_f(tau) lies between s(tau - W/2) and s(tau + W/2): each point's time moves by at
-    # most W/2. Bisection to the float's resolution; both ends of every window in one
-    # call, and no step after the one that changes nothing (each repeats it exactly).
+    # s_f(tau) = (A(tau + W/2) - A(tau - W/2)) / W with A the integral of s: a point's
+    # filtered time solves s_f(tau) = s_i, and lies within W/2 of its own time (s_f is
+    # between s(tau - W/2) and s(tau + W/2)). Halley's method in that bracket (the first
+    # and second derivatives are the differences of s and sdot across the window, known
+    # at no cost; near a rest s_f is cubic-like, where Newton's steps are slow),
+    # bisecting where a step would leave it; each round only the points whose time
+    # still moved by more than a picosecond.
     lo, hi = t - half, t + half
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        ends = area(np.concatenate((mid + half, mid - half)))
-        below = (ends[:n_pts] - ends[n_pts:]) / window < s
-        new_lo = np.where(below, mid, lo)
-        new_hi = np.where(below, hi, mid)
-        if not ((new_lo != lo).any() or (new_hi != hi).any()):
+    tf = t.copy()
+    goal = s * window
+    todo = np.arange(1, n_pts - 1)  # the ends are set below
+    tol = 1e-12
+    for _ in range(100):
+        tq = tf[todo]
+        a, p, w = area_pos(np.concatenate((tq + half, tq - half)))
+        m = len(todo)
+        f = a[:m] - a[m:] - goal[todo]
+        slope = p[:m] - p[m:]
+        bend = w[:m] - w[m:]
+        lo_t = np.where(f < 0, tq, lo[todo])
+        hi_t = np.where(f > 0, tq, hi[todo])
+        lo[todo], hi[todo] = lo_t, hi_t
+        with np.errstate(divide="ignore", invalid="ignore"):
+            nxt = tq - 2.0 * f * slope / (2.0 * slope * slope - f * bend)
+        off = ~((nxt > lo_t) & (nxt < hi_t))
+        nxt[off] = 0.5 * (lo_t[off] + hi_t[off])
+        tf[todo] = nxt
+        moving = (np.abs(nxt - tq) > tol)
+        todo = todo[moving]
+        if not todo.size:
             break
-        lo, hi = new_lo, new_hi
-    tf = 0.5 * (lo + hi)
     tf[0], tf[-1] = -half, t_end + half
     pp, vp, _ = at(tf + half)
     pm, vm, _ = at(tf - half)
