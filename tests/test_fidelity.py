@@ -229,3 +229,20 @@ def test_ink_figures_are_written_with_or_without_a_difference(tmp_path: Path) ->
         with Image.open(tmp_path / name) as im:
             assert im.format == "PNG"
             assert im.size == (round(FIGSIZE[0] * DPI), round(FIGSIZE[1] * DPI))
+
+
+@given(seed=st.integers(0, 2**32 - 1))
+@settings(max_examples=60, deadline=None)
+def test_distances_at_a_few_pixels_are_the_transforms(seed: int) -> None:
+    """``distance_at`` (a k-d tree of the target's edge for a few pixels, the transform
+    for many) gives the precise distance transform's distances, to its float32."""
+    from tattotronix.path.fidelity import distance_at, distance_to
+
+    rng = np.random.default_rng(seed)
+    h, w = (int(x) for x in rng.integers(1, 120, 2))
+    img = rng.random((h, w)) < rng.choice([0.0, 0.001, 0.05, 0.5])
+    where = rng.random((h, w)) < rng.choice([0.001, 0.02, 0.3])
+    got = distance_at(img, where)
+    want = distance_to(img)[where]
+    assert got.dtype == np.float32 and got.shape == want.shape
+    np.testing.assert_allclose(got, want, rtol=2e-6, atol=0)

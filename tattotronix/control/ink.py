@@ -21,7 +21,7 @@ from tattotronix.io.jsontypes import JsonDict
 from tattotronix.path.fidelity import (
     InkGrid,
     below_runs,
-    distance_to,
+    distance_at,
     grid_over,
     rasterise_runs,
 )
@@ -91,7 +91,7 @@ class InkComparison:
 
 def _worst_distance_px(a: NDArray[np.bool_], b: NDArray[np.bool_]) -> float:
     """max over pixels of ``a`` of the distance to the nearest pixel of ``b`` (px)."""
-    return float(distance_to(b)[a].max()) if a.any() else 0.0
+    return float(distance_at(b, a).max()) if a.any() else 0.0
 
 
 def compare_ink(sim: NDArray[np.bool_], plan: NDArray[np.bool_], res_mm: float) -> InkComparison:

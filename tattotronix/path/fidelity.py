@@ -35,8 +35,9 @@ from tattotronix.path.inset import pixel_width
 
 __all__ = ["MISSED_MIN_NEEDLES2", "ArtworkFidelity", "InkGrid", "LineWidth", "MissedPart",
            "PlannedInk", "artwork_fidelity", "missed_message", "missed_reach_mm",
-           "artwork_on", "below_runs", "distance_to", "fidelity_image", "grid_over",
-           "line_runs", "line_width", "planned_ink", "rasterise_runs", "save_png"]
+           "artwork_on", "below_runs", "distance_at", "distance_to", "fidelity_image",
+           "grid_over", "line_runs", "line_width", "planned_ink", "rasterise_runs",
+           "save_png"]
 
 Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
@@ -128,7 +129,12 @@ def artwork_on(mask: InkMask, grid: InkGrid) -> Mask:
     h, w = mask.ink.shape
     okc, okr = (mc >= 0) & (mc < w), (mr >= 0) & (mr < h)
     out = np.zeros(grid.shape, dtype=bool)
-    out[np.ix_(okr, okc)] = mask.ink[np.ix_(mr[okr], mc[okc])]
+    # rows, then columns: two gathers of whole lines (a 2-D fancy index is slower), into
+    # the block of the grid the mask covers (the indices grow with u and fall with v)
+    r, c = np.flatnonzero(okr), np.flatnonzero(okc)
+    if r.size and c.size:
+        out[r[0]:r[-1] + 1, c[0]:c[-1] + 1] = np.take(np.take(mask.ink, mr[r], axis=0),
+                                                      mc[c], axis=1)
     return out
 
 
@@ -144,6 +150,40 @@ def distance_to(img: Mask) -> NDArray[np.float32]:
         return np.full(img.shape, np.inf, dtype=np.float32)
     dist = cv2.distanceTransform((~img).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     return np.asarray(dist, dtype=np.float32)
+
+
+#: :func:`distance_at` searches a tree of the target's edge when the pixels asked about
+#: are at most this share of the grid; more, and one distance transform is quicker
+_TREE_SHARE = 1 / 16
+
+
+def distance_at(img: Mask, where: Mask) -> NDArray[np.float32]:
+    """``distance_to(img)[where]``: the distance of each pixel of ``where`` to the nearest
+    pixel of ``img`` (px; inf if ``img`` is empty), without a distance transform of the
+    whole grid when ``where`` is a small part of it.
+
+    The nearest pixel of ``img`` to a pixel outside it has a 4-neighbour outside ``img``
+    (a step from it towards the pixel, along its larger offset, comes strictly closer), so
+    a k-d tree of ``img``'s edge (:func:`_edge`) gives the exact Euclidean distance, as
+    the precise transform does.
+    """
+    n = int(where.sum())
+    if n == 0:
+        return np.zeros(0, dtype=np.float32)
+    if not img.any():
+        return np.full(n, np.inf, dtype=np.float32)
+    if n > _TREE_SHARE * where.size:
+        return distance_to(img)[where]
+    from scipy.spatial import cKDTree
+
+    rows, cols = np.nonzero(where)
+    out = np.zeros(n, dtype=np.float64)
+    away = ~img[rows, cols]
+    if away.any():
+        er, ec = np.nonzero(_edge(img))
+        tree = cKDTree(np.column_stack([er, ec]).astype(np.float64))
+        out[away], _ = tree.query(np.column_stack([rows[away], cols[away]]).astype(np.float64))
+    return out.astype(np.float32)
 
 
 @dataclass(frozen=True)
@@ -235,9 +275,9 @@ def artwork_fidelity(art: Mask, ink: Mask, res_mm: float, outlines: Mask | None 
     """
     n_ink, n_art = int(ink.sum()), int(art.sum())
     outside = ink & ~art
-    bleed_max = float(distance_to(art)[outside].max()) * res_mm if outside.any() else 0.0
+    bleed_max = float(distance_at(art, outside).max()) * res_mm if outside.any() else 0.0
     art_edge = _edge(art)
-    to_ink_edge = distance_to(_edge(ink))[art_edge]
+    to_ink_edge = distance_at(_edge(ink), art_edge)
 
     def cover(m: Mask) -> float:
         return float((m & art).sum()) / n_art if n_art else 0.0

@@ -13,6 +13,14 @@ from tattotronix.plotting import pyplot
 __all__ = ["toolpath_figure"]
 
 
+def _runs(uv: np.ndarray, on: np.ndarray) -> list[np.ndarray]:
+    """The polylines of consecutive segments ``on`` (segment ``i`` joins points ``i`` and
+    ``i + 1``): one path each, not one per segment (a drawing has thousands)."""
+    edges = np.diff(np.concatenate(([0], on.astype(np.int8), [0])))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    return [uv[a:b + 1] for a, b in zip(starts, stops, strict=True)]
+
+
 def toolpath_figure(tp: Toolpath, panel_size_mm: tuple[float, float], path: Path,
                     title: str = "") -> None:
     """Draw the toolpath over the panel and save it as a PNG.
@@ -43,11 +51,11 @@ def toolpath_figure(tp: Toolpath, panel_size_mm: tuple[float, float], path: Path
     fig, ax = plt.subplots(figsize=(10, 10 * ph / pw + 0.9), dpi=150)
     ax.add_patch(Rectangle((-pw / 2, -ph / 2), pw, ph, facecolor="#f4efe6",
                            edgecolor="#8a7f70", lw=1.2, zorder=0))
-    ax.add_collection(LineCollection(seg[travel], colors="#d9480f", linewidths=0.5,
+    ax.add_collection(LineCollection(_runs(uv, travel), colors="#d9480f", linewidths=0.5,
                                      linestyles=(0, (3, 2)), alpha=0.8, zorder=1,
                                      label="travel at clearance"))
-    ax.add_collection(LineCollection(seg[ink], colors="#1b1b1b", linewidths=0.6, zorder=2,
-                                     label="ink (needle down)"))
+    ax.add_collection(LineCollection(_runs(uv, ink), colors="#1b1b1b", linewidths=0.6,
+                                     zorder=2, label="ink (needle down)"))
     ax.plot(uv[entry, 0], uv[entry, 1], "o", ms=3.5, mfc="#1971c2", mec="white", mew=0.5,
             zorder=3, label="needle entry")
     m, o = tp.metrics, tp.original

@@ -21,7 +21,7 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from tattotronix.path.fidelity import ArtworkFidelity, InkGrid, distance_to
+from tattotronix.path.fidelity import ArtworkFidelity, InkGrid, distance_at
 from tattotronix.plotting import pyplot
 
 __all__ = ["InkLayer", "artwork_ink_figure", "ink_figure", "plan_ink_figure", "worst_spot"]
@@ -220,9 +220,9 @@ def plan_ink_figure(sim: Mask, plan: Mask, grid: InkGrid, path: Path, title: str
     sim_only, plan_only = sim & ~plan, plan & ~sim
     far = np.zeros(sim.shape, dtype=np.float32)
     if sim_only.any():
-        far[sim_only] = distance_to(plan)[sim_only]
+        far[sim_only] = distance_at(plan, sim_only)
     if plan_only.any():
-        far[plan_only] = distance_to(sim)[plan_only]
+        far[plan_only] = distance_at(sim, plan_only)
     worst = worst_spot(far, sim_only | plan_only, int(round(1.0 / grid.res_mm)))
     words = "" if worst is None else f"{far[worst] * grid.res_mm:.2f} mm from the other ink"
     ink_figure([InkLayer(sim & plan, INK_BOTH, "inked in both"),
@@ -245,7 +245,7 @@ def artwork_ink_figure(art: Mask, ink: Mask, grid: InkGrid, path: Path, head: st
     bleed = ink & ~art
     far = np.zeros(art.shape, dtype=np.float32)
     if bleed.any():
-        far[bleed] = distance_to(art)[bleed]
+        far[bleed] = distance_at(art, bleed)
     worst = worst_spot(far, bleed, int(round(1.0 / grid.res_mm)))
     words = "" if worst is None else f"{far[worst] * grid.res_mm:.2f} mm outside the artwork"
     ink_figure([InkLayer(art & ~ink, ART_UNINKED, "artwork left uninked"),
