@@ -387,3 +387,21 @@ def test_ik_stage_refuses_an_unreachable_placement_and_writes_nothing(tmp_path: 
 def test_ik_stage_names_the_missing_stage(tmp_path: Path) -> None:
     run = _ik_stage(tmp_path)
     assert run.returncode == 2 and "'robot' stage" in run.stderr
+
+
+def test_independent_points_each_from_its_own_seed(chain: Chain) -> None:
+    """``solve_points``: poses from random reachable configurations, each solved from a
+    seed near its own, land on their targets with their own (tilted) needle axes; bad
+    seeds are refused in one line."""
+    from tattotronix.kinematics.ik import solve_points
+
+    rng = np.random.default_rng(7)
+    q_true = np.array([0.0, 0.6, -0.9, 0.0, -1.2]) + rng.uniform(-0.3, 0.3, (40, 5))
+    tip, axis = chain.fk(q_true)
+    q, ok = solve_points(chain, tip, q_true + rng.uniform(-0.05, 0.05, q_true.shape),
+                         needle_axis=axis)
+    assert ok.all()
+    got_tip, got_axis = chain.fk(q)
+    assert np.abs(got_tip - tip).max() < 1e-5 and np.abs(got_axis - axis).max() < 1e-5
+    with pytest.raises(TattotronixError, match=r"IK seeds must be \(40, 5\)"):
+        solve_points(chain, tip, q_true[:3], needle_axis=axis)

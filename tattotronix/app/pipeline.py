@@ -116,9 +116,11 @@ def drawing_inputs(cfg: Config, source: str | Path | None, name: str,
 
 
 def artwork_inputs(cfg: Config, source: str | Path | None, name: str,
-                   desc: RobotDescription | None = None
+                   desc: RobotDescription | None = None, *, reach: bool = True
                    ) -> tuple[Artwork, InkMask, VectorLines | None]:
     """:func:`drawing_inputs`, and the artwork on its grid (what the artwork stage writes).
+    ``reach=False`` leaves out the panel's reach check (a design for a curved surface is
+    checked there: :mod:`tattotronix.app.onskin`).
 
     Raises:
         TattotronixError: as :func:`drawing_inputs`.
@@ -130,7 +132,8 @@ def artwork_inputs(cfg: Config, source: str | Path | None, name: str,
                        height_mm=m.height_mm)
     grey = art.as_uint8().astype(np.float64)  # what the artwork stage's PNG holds
     mask, _ = mask_on_panel(grey, art.res_mm, m, cfg.robot.panel.size_mm, art.transparent)
-    check_reach(cfg, mask, desc)
+    if reach:
+        check_reach(cfg, mask, desc)
     vector = (artwork_lines(source, art.shape, art.res_mm, cfg.toolpath.step_mm)
               if cfg.artwork.vector else None)
     return art, mask, vector

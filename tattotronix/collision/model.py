@@ -8,7 +8,11 @@
 * **Environment**: the bench (a solid box under z = 0) and the panel. The needle may enter
   the panel: that one geometry pair is not checked, and the tip's depth below the panel
   surface is checked against ``toolpath.plunge_mm`` instead (:meth:`needle_depth_m`).
-  The barrel and every link may not.
+  The barrel and every link may not. For a drawing on a curved surface (issue 33) the
+  limb lies on the bench in the panel's place: the convex hull of its mesh (exact for
+  the phantom, which is convex; a scan's hull is larger than the scan, so the check errs
+  safe), which the needle alone may enter (its depth is the path's, set along the
+  surface's normal: :func:`~tattotronix.path.onskin.carry_path`).
 * **Pairs**: the checked body pairs of :func:`~tattotronix.collision.pairs.body_pairs`; a
   body pair's clearance is the least distance over its geometry pairs (negative: depth of
   penetration, from coal's GJK/EPA on convex shapes).
@@ -30,7 +34,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from tattotronix.collision.pairs import BodyPair, body_pairs
+from tattotronix.collision.pairs import ENVIRONMENT, LIMB, ON_SKIN, BodyPair, body_pairs
 from tattotronix.collision.shapes import kdop_vertices, load_kdops, mesh_vertices
 from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
@@ -122,9 +126,12 @@ class CollisionModel:
     Args:
         desc: the robot description (its ``cad_dir`` picks mesh hulls or k-DOPs).
         kdops: ``{link: offsets}``; default the committed table.
+        limb_m: (V, 3) the vertices of a limb on the bench (arm frame, m): the
+            environment is then the bench and the limb, without the panel.
     """
 
-    def __init__(self, desc: RobotDescription, kdops: dict[str, Array] | None = None):
+    def __init__(self, desc: RobotDescription, kdops: dict[str, Array] | None = None,
+                 limb_m: ArrayLike | None = None):
         import coal
         import pinocchio as pin
 
@@ -175,9 +182,16 @@ class CollisionModel:
         bench = desc.bench_size
         add("bench", "bench", None, pin.SE3(eye, np.array([0.0, 0.0, -bench[2] / 2])),
             coal.Box(*bench))
-        add("panel", "panel", None, pin.SE3(eye, desc.panel_centre), coal.Box(*desc.panel_size))
+        self.on_skin = limb_m is not None
+        if limb_m is None:
+            add("panel", "panel", None, pin.SE3(eye, desc.panel_centre),
+                coal.Box(*desc.panel_size))
+        else:
+            add(LIMB, LIMB, None, pin.SE3(eye, np.zeros(3)),
+                _convex(np.asarray(limb_m, dtype=np.float64)))
+        skin = {NEEDLE, "panel" if limb_m is None else LIMB}
 
-        self.pairs: list[BodyPair] = body_pairs(desc)
+        self.pairs: list[BodyPair] = body_pairs(desc, ON_SKIN if self.on_skin else ENVIRONMENT)
         self.checked: list[BodyPair] = [p for p in self.pairs if p.checked]
         index = {p.name: i for i, p in enumerate(self.checked)}
         names = [g.name for g in gm.geometryObjects]
@@ -185,7 +199,7 @@ class CollisionModel:
         for i in range(len(names)):
             for j in range(i + 1, len(names)):
                 key = f"{owner[i]}|{owner[j]}"
-                if key not in index or {names[i], names[j]} == {NEEDLE, "panel"}:
+                if key not in index or {names[i], names[j]} == skin:
                     continue
                 gm.addCollisionPair(pin.CollisionPair(i, j))
                 pair_of.append(index[key])
@@ -285,7 +299,10 @@ class CollisionModel:
 
     def needle_depth_m(self, tcp: Array) -> Array:
         """Depth of the tip below the panel surface where it is over the panel, else
-        ``-inf``, (N,) m."""
+        ``-inf``, (N,) m (``-inf`` everywhere on the limb: there the path sets the depth
+        along the surface's normal)."""
+        if self.on_skin:
+            return np.full(len(np.atleast_2d(tcp)), -np.inf)
         c, s = self.desc.panel_centre, self.desc.panel_size
         top = c[2] + s[2] / 2
         tip = np.atleast_2d(tcp)

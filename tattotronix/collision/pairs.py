@@ -21,11 +21,15 @@ from itertools import combinations
 
 from tattotronix.robot.description import RobotDescription
 
-__all__ = ["ENVIRONMENT", "WORLD", "BodyPair", "body_pairs"]
+__all__ = ["ENVIRONMENT", "LIMB", "ON_SKIN", "WORLD", "BodyPair", "body_pairs"]
 
 WORLD = "world"
 #: environment bodies, fixed to the world (bench top at z = 0; the panel on it)
 ENVIRONMENT = ("bench", "panel")
+#: the limb a drawing on a curved surface goes on (issue 33), in the panel's place
+LIMB = "limb"
+#: the environment of a drawing on the limb
+ON_SKIN = ("bench", LIMB)
 
 
 @dataclass(frozen=True)
@@ -33,7 +37,7 @@ class BodyPair:
     """Two bodies and whether their collisions are checked.
 
     Attributes:
-        a, b: body names (links, ``bench``, ``panel``).
+        a, b: body names (links, ``bench``, ``panel`` or ``limb``).
         checked: False for an allowed pair.
         reason: why a pair is allowed ("" for checked pairs).
         joints: the movable joints on the tree path between them.
@@ -47,8 +51,8 @@ class BodyPair:
 
     @property
     def environment(self) -> bool:
-        """True when one body is the bench or the panel."""
-        return self.a in ENVIRONMENT or self.b in ENVIRONMENT
+        """True when one body is the bench, the panel or the limb."""
+        return bool({self.a, self.b} & {*ENVIRONMENT, LIMB})
 
     @property
     def name(self) -> str:
@@ -56,14 +60,15 @@ class BodyPair:
         return f"{self.a}|{self.b}"
 
 
-def _parents(d: RobotDescription) -> dict[str, tuple[str, str | None]]:
+def _parents(d: RobotDescription, environment: tuple[str, ...]
+             ) -> dict[str, tuple[str, str | None]]:
     """node -> (parent, movable joint name or None) over links, frames and the world."""
     up: dict[str, tuple[str, str | None]] = {d.links[0]: (WORLD, None)}
     for j in d.joints:
         up[j.child] = (j.parent, j.name)
     for f in d.frames:
         up.setdefault(f.name, (f.parent, None))
-    for env in ENVIRONMENT:
+    for env in environment:
         up[env] = (WORLD, None)
     return up
 
@@ -84,19 +89,21 @@ def _path(up: dict[str, tuple[str, str | None]], a: str, b: str) -> tuple[list[s
     return inner, [j for j in joints if j is not None]
 
 
-def body_pairs(d: RobotDescription) -> list[BodyPair]:
-    """Every pair of bodies (links with geometry, then the environment), classified.
+def body_pairs(d: RobotDescription, environment: tuple[str, ...] = ENVIRONMENT
+               ) -> list[BodyPair]:
+    """Every pair of bodies (links with geometry, then the environment: the bench and the
+    panel, or for a drawing on the limb :data:`ON_SKIN`), classified.
 
     The pair of the two environment bodies is left out (neither moves); a link without
     geometry is a shape-less frame.
     """
-    up = _parents(d)
+    up = _parents(d, environment)
     shaped_links = [link for link in d.links if d.geometry.get(link)]
-    bodies = set(shaped_links) | set(ENVIRONMENT)
+    bodies = set(shaped_links) | set(environment)
     out: list[BodyPair] = []
-    names = shaped_links + list(ENVIRONMENT)
+    names = shaped_links + list(environment)
     for a, b in combinations(names, 2):
-        if a in ENVIRONMENT and b in ENVIRONMENT:
+        if a in environment and b in environment:
             continue
         inner, joints = _path(up, a, b)
         shaped = [n for n in inner if n in bodies]

@@ -74,6 +74,7 @@ __all__ = [
     "PanelConfig",
     "PathsConfig",
     "PenConfig",
+    "PhantomConfig",
     "Plain",
     "PlantConfig",
     "RANGE_KEY",
@@ -83,6 +84,8 @@ __all__ = [
     "ServoMountConfig",
     "Structure",
     "StudyConfig",
+    "SurfaceConfig",
+    "SurfaceKind",
     "Tool",
     "ToolpathConfig",
     "TrajectoryConfig",
@@ -1067,6 +1070,57 @@ class StudyConfig:
     fills: FillsStudyConfig = field(default_factory=FillsStudyConfig)
 
 
+class SurfaceKind(Enum):
+    """The work surface: the flat panel, the built-in forearm phantom, or a mesh file."""
+
+    panel = "panel"
+    forearm = "forearm"
+    mesh = "mesh"
+
+
+@settings
+class PhantomConfig:
+    """The forearm phantom: a tapered elliptic cylinder (docs/surface.md, "The phantom")."""
+
+    length_mm: float = bounded(220.0, lo=10, hi=1000, unit="mm")
+    elbow_width_mm: float = bounded(80.0, lo=5, hi=500, unit="mm")
+    wrist_width_mm: float = bounded(55.0, lo=5, hi=500, unit="mm")
+    depth_ratio: float = bounded(0.75, lo=0.2, hi=1.0,
+                                 why="the section's thickness over its width")
+
+
+@settings
+class SurfaceConfig:
+    """The work surface and where the design goes on it (docs/surface.md)."""
+
+    kind: SurfaceKind = SurfaceKind.panel
+    phantom: PhantomConfig = field(default_factory=PhantomConfig)
+    # surface=mesh: an STL, PLY or OBJ file, its unit in mm (10: cm) and the placement
+    # point in its own frame after the unit, mm (null: its highest point once posed)
+    mesh_file: str | None = None
+    mesh_unit_mm: float = bounded(1.0, lo=1e-3, hi=1000, why="millimetres per file unit")
+    mesh_at_mm: list[float] | None = bounded(None, lo=-1000, hi=1000, unit="mm")
+    # the limb's pose on the bench: its frame's origin (the phantom's: the elbow end of
+    # its axis) in the arm frame, and its turn about the vertical (0: the limb pointing
+    # away from the arm's base, along x; 90: across, along y)
+    origin_mm: list[float] = bounded(factory=lambda: [60.0, 0.0, 30.0], lo=-1000,
+                                     hi=1000, unit="mm")
+    yaw_deg: float = bounded(0.0, lo=-360, hi=360, unit="deg")
+    # the design's centre on the phantom: along its axis from the elbow end, around it
+    # (90: the top), and the design's turn there (0: its width along the limb; 90:
+    # around it)
+    along_mm: float = bounded(150.0, lo=0, hi=1000, unit="mm")
+    around_deg: float = bounded(90.0, lo=-360, hi=360, unit="deg")
+    turn_deg: float = bounded(90.0, lo=-360, hi=360, unit="deg")
+    # the most the map from the design to the skin may distort it (area or angle)
+    max_distortion_pct: float = bounded(0.5, lo=0, hi=100, unit="%")
+    # the reachability map over the phantom: sections along it, points around each, and
+    # the ends left out
+    reach_along: int = bounded(23, lo=2, hi=500, why="sections of the reachability map")
+    reach_around: int = bounded(36, lo=4, hi=720, why="points around each section")
+    reach_margin_mm: float = bounded(10.0, lo=0, hi=500, unit="mm")
+
+
 @settings
 class PathsConfig:
     """Where runs read and write (relative to the working folder; README, "Hand runs")."""
@@ -1092,6 +1146,7 @@ class Config:
     plant: PlantConfig = field(default_factory=PlantConfig)
     draw: DrawConfig = field(default_factory=DrawConfig)
     servo: ServoPlantConfig = field(default_factory=ServoPlantConfig)
+    surface: SurfaceConfig = field(default_factory=SurfaceConfig)
     # rescales the motion: 2 draws twice as fast (marking at 2x feed)
     speed: float = bounded(1.0, lo=0.01, hi=1000)
     backend: Backend = Backend.mujoco  # draw.py: the plant
@@ -1122,6 +1177,7 @@ SCHEMAS: dict[str, type] = {
     "draw": DrawConfig,
     "servo": ServoPlantConfig,
     "hardware": HardwareConfig,
+    "surface": SurfaceConfig,
 }
 
 

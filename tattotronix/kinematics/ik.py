@@ -111,6 +111,7 @@ __all__ = [
     "solve_path",
     "solve_path_sequential",
     "solve_point",
+    "solve_points",
     "task_jacobian",
     "verify",
 ]
@@ -458,6 +459,37 @@ def _solve_lockstep(
         q = np.clip(raw, lo, hi)
         clamp = q != raw
     return out
+
+
+def solve_points(chain: Chain, targets_m: ArrayLike, seeds: ArrayLike, *,
+                 needle_axis: ArrayLike = NEEDLE_AXIS, dls_lambda: float = DLS_LAMBDA,
+                 max_iter: int = MAX_ITER, tol: float = TOL
+                 ) -> tuple[Array, NDArray[np.bool_]]:
+    """IK for independent points, each from its own seed, in one batch (no path: no
+    warm start from a neighbour, no anchors): ``(q (N, n), converged (N,))``.
+
+    Args:
+        chain: the kinematic model.
+        targets_m: (N, 3) tip targets, m.
+        seeds: (N, n) the joint angles each point starts from, rad.
+        needle_axis: (3,) wanted tip +z for every point, or (N, 3) per point.
+        dls_lambda, max_iter, tol: as :func:`solve_path`.
+
+    Raises:
+        TattotronixError: targets, axes or seeds of the wrong shape, or bad settings.
+    """
+    x, z_const, z_rows, _ = _path_inputs(targets_m, needle_axis, np.zeros(chain.n), chain.n)
+    _check_settings(dls_lambda, max_iter, tol, ANCHOR_SPACING_M)
+    q0 = np.asarray(seeds, dtype=float)
+    if q0.shape != (len(x), chain.n) or not np.all(np.isfinite(q0)):
+        raise TattotronixError(f"IK seeds must be ({len(x)}, {chain.n}) finite joint angles "
+                               f"(rad), got {q0.shape}")
+    if not len(x):
+        return np.zeros((0, chain.n)), np.zeros(0, bool)
+    b = _solve_lockstep(chain, np.ascontiguousarray(x.T), z_rows, z_const,
+                        np.ascontiguousarray(q0.T), dls_lambda=dls_lambda,
+                        max_iter=max_iter, tol=tol)
+    return np.ascontiguousarray(b.q.T), b.converged
 
 
 # --- the whole path -----------------------------------------------------------------------

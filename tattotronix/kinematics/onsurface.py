@@ -6,9 +6,11 @@ The grid is swept as one path (a serpentine: section by section, back and forth 
 the limb), so :func:`~tattotronix.kinematics.ik.solve_path` warm-starts each point from
 its neighbour and re-solves across branch jumps; the points it missed are swept again in
 the other direction (angle by angle along the limb); a point neither converges on is out
-of reach. The tilt error is the angle between the reached needle axis and the inward
-normal; the conditioning is the task Jacobian's (:func:`~tattotronix.kinematics.ik.
-conditioning`).
+of reach, unless it converges when solved alone from a reached neighbour's pose (round
+after round, while the reached set grows: :func:`~tattotronix.kinematics.ik.
+solve_points`). The tilt error is the angle between the reached needle axis and the
+inward normal; the conditioning is the task Jacobian's (:func:`~tattotronix.kinematics.
+ik.conditioning`).
 """
 
 from __future__ import annotations
@@ -21,7 +23,15 @@ from numpy.typing import ArrayLike, NDArray
 from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.kinematics.chain import Chain
-from tattotronix.kinematics.ik import IkOptions, conditioning, solve_path
+from tattotronix.kinematics.ik import (
+    DLS_LAMBDA,
+    MAX_ITER,
+    TOL,
+    IkOptions,
+    conditioning,
+    solve_path,
+    solve_points,
+)
 from tattotronix.surface.cone import EllipticCone
 
 __all__ = ["SurfaceReach", "cone_reach"]
@@ -34,6 +44,8 @@ def _serpentine(rows: int, cols: int) -> NDArray[np.int64]:
     return idx.ravel()
 
 Array = NDArray[np.float64]
+#: rounds of solving unreached points from a reached neighbour's pose
+_GROW_ROUNDS = 50
 
 
 @dataclass(frozen=True)
@@ -117,6 +129,28 @@ def cone_reach(chain: Chain, cone: EllipticCone, depth_mm: float, ik: IkOptions,
         res = solve_path(chain, tip[todo] / 1000.0, seed=seed, **opts)
         q[todo[res.converged]] = res.q[res.converged]
         converged[todo[res.converged]] = True
+    # the sweeps' warm starts can leave a point a neighbour reached: each such point is
+    # solved alone from that neighbour's pose, round after round while the set grows
+    grid_ok = converged.reshape(n_along, n_around)
+    tried: set[tuple[int, int]] = set()  # (point, neighbour) pairs already solved
+    for _ in range(_GROW_ROUNDS):
+        pairs = [(i * n_around + j, a * n_around + b)
+                 for i, j in zip(*np.nonzero(~grid_ok), strict=True)
+                 for a, b in ((i - 1, j), (i + 1, j), (i, (j - 1) % n_around),
+                              (i, (j + 1) % n_around))
+                 if 0 <= a < n_along and grid_ok[a, b]]
+        pairs = [pr for pr in pairs if pr not in tried]
+        if not pairs:
+            break
+        tried.update(pairs)
+        k, src = (np.array(v, dtype=np.int64) for v in zip(*pairs, strict=True))
+        qk, ok = solve_points(chain, tip[k] / 1000.0, q[src], needle_axis=-normal[k],
+                              dls_lambda=float(ik.get("dls_lambda", DLS_LAMBDA)),
+                              max_iter=int(ik.get("max_iter", MAX_ITER)),
+                              tol=float(ik.get("tol", TOL)))
+        for kk, qq in zip(k[ok], qk[ok], strict=True):
+            if not converged[kk]:  # the first neighbour's solution that converged
+                q[kk], converged[kk] = qq, True
     tilt = np.full(len(x), np.nan)
     cond = np.full(len(x), np.nan)
     if converged.any():

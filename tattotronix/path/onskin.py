@@ -12,7 +12,8 @@ the inward normal. Then:
   bound of one, so the steps change by at most that much);
 * every step is split in the design plane until its chord is within ``sag_mm`` of the
   carried midpoint, so the straight moves between points neither cut into the skin
-  nor lose clearance over its curvature (travel between strokes is long).
+  nor lose clearance over its curvature (travel between strokes is long), and no longer
+  than ``max_step_mm`` (the time law then splits none with one needle axis).
 """
 
 from __future__ import annotations
@@ -82,8 +83,8 @@ def _resample_strokes(chart: Chart, uvz: Array, kind: NDArray[np.int8]) -> Array
     return out
 
 
-def carry_path(uvz_mm: Array, kind: NDArray[np.int8], chart: Chart, sag_mm: float = 0.01
-               ) -> SkinPath:
+def carry_path(uvz_mm: Array, kind: NDArray[np.int8], chart: Chart, sag_mm: float = 0.01,
+               max_step_mm: float = np.inf) -> SkinPath:
     """Carry a design-plane needle path onto the surface of ``chart`` (module docstring).
 
     Args:
@@ -91,6 +92,8 @@ def carry_path(uvz_mm: Array, kind: NDArray[np.int8], chart: Chart, sag_mm: floa
         kind: (N,) its points' kinds.
         chart: the design's chart on the surface.
         sag_mm: the most a straight step may stray from the carried path.
+        max_step_mm: the longest step (the time law's densify step: a longer one would be
+            split by IK with one needle axis, not the surface's).
 
     Raises:
         TattotronixError: a point the chart does not cover (naming it), or a step that
@@ -101,15 +104,17 @@ def carry_path(uvz_mm: Array, kind: NDArray[np.int8], chart: Chart, sag_mm: floa
     if uvz.ndim != 2 or uvz.shape[1] != 3 or len(uvz) != len(kinds) or len(uvz) < 2:
         raise TattotronixError(f"a path needs (N, 3) points and N kinds, N >= 2; got "
                                f"{uvz.shape} and {kinds.shape}")
-    if not sag_mm > 0:
-        raise TattotronixError(f"sag_mm={sag_mm}: give a positive tolerance in mm")
+    if not sag_mm > 0 or not max_step_mm > 0:
+        raise TattotronixError(f"sag_mm={sag_mm}, max_step_mm={max_step_mm}: give positive "
+                               "lengths in mm")
     uvz = _resample_strokes(chart, uvz, kinds)
     xyz, axis = _carry(chart, uvz)
     for _ in range(_MAX_SPLITS):
         mid = 0.5 * (uvz[1:] + uvz[:-1])
         mid_xyz, _ = _carry(chart, mid)
         sag = np.linalg.norm(mid_xyz - 0.5 * (xyz[1:] + xyz[:-1]), axis=1)
-        split = np.flatnonzero(sag > sag_mm)
+        step = np.linalg.norm(np.diff(xyz, axis=0), axis=1)
+        split = np.flatnonzero((sag > sag_mm) | (step > max_step_mm))
         if split.size == 0:
             return SkinPath(xyz, axis, kinds, uvz)
         at = split + 1  # insert each midpoint before its step's far end (its kind)

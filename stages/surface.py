@@ -1,0 +1,82 @@
+"""Stage ``surface``: a drawing on a curved work surface (issue 33; docs/surface.md).
+
+Run with ``surface=forearm`` (the built-in phantom) or ``surface=mesh
+surface.mesh_file=PATH``. Plans the artwork's design in its own plane, lays it on the
+surface at ``surface.along_mm``/``around_deg``/``turn_deg`` (the chart's distortion over
+the design checked against ``surface.max_distortion_pct``), carries the needle path onto
+it along the normals and solves the IK with the needle along the inward normal at every
+point (tattotronix/app/onskin.py); on the phantom, maps where the arm can put the needle
+along the normal (tattotronix/kinematics/onsurface.py). Writes
+``data/surface/<name>.npz`` (the surface's mesh, the skin path, the joint angles, the
+reachability map), ``data/metrics/surface/<name>.json`` and
+``data/figures/surface/<name>.png``.
+"""
+
+from __future__ import annotations
+
+# first: a Ctrl-C while the libraries below import ends in one line (tattotronix/__init__.py)
+import tattotronix  # noqa: F401
+
+# isort: split
+import logging
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from tattotronix.app.onskin import plan_on_surface
+from tattotronix.art.artwork import artwork_name
+from tattotronix.config.schema import Config
+from tattotronix.io.artifacts import PROVENANCE_KEY
+from tattotronix.io.npz import save_npz
+from tattotronix.io.outputs import Outputs
+from tattotronix.kinematics import Chain
+from tattotronix.kinematics.ik import ik_options
+from tattotronix.kinematics.onsurface import cone_reach
+from tattotronix.report.surface import surface_figure
+from tattotronix.robot.description import build_description
+from tattotronix.stage import run_stage
+
+log = logging.getLogger("tattotronix.surface")
+
+
+def main(cfg: Config, out: Outputs) -> None:
+    """Lay the design on the surface, solve it, map the reach; write the outputs."""
+    name = artwork_name(cfg.artwork)
+    desc = build_description(cfg.robot)
+    d = plan_on_surface(cfg, cfg.artwork.source, name, desc)
+    s = cfg.surface
+    reach = None
+    if d.surface.cone is not None:
+        reach = cone_reach(Chain.from_description(desc), d.surface.cone,
+                           float(cfg.toolpath.plunge_mm), ik_options(cfg.ik),
+                           list(cfg.ik.seed), n_along=int(s.reach_along),
+                           n_around=int(s.reach_around),
+                           margin_mm=float(s.reach_margin_mm))
+    metrics = d.summary()
+    if reach is not None:
+        metrics["reach"] = reach.summary()
+    arrays: dict[str, ArrayLike] = {
+        "vertices_mm": d.surface.vertices, "faces": d.surface.faces,
+        "xyz_mm": d.skin.xyz_mm, "axis": d.skin.axis, "kind": d.skin.kind,
+        "uvz_mm": d.skin.uvz_mm, "q": d.ik.q, "tilt_deg": d.tilt_deg}
+    if reach is not None:
+        arrays.update(reach_along_mm=reach.along_mm, reach_around_deg=reach.around_deg,
+                      reachable=reach.reachable, reach_tilt_deg=reach.tilt_deg,
+                      reach_cond=reach.cond)
+    arrays[PROVENANCE_KEY] = np.array(out.provenance(cfg, {}))
+    save_npz(out.tmp_path(out.path("surface", f"{name}.npz")), arrays)
+    out.write_json(out.path("metrics", "surface", f"{name}.json"), metrics)
+    surface_figure(d, reach, out.tmp_path(out.path("figures", "surface", f"{name}.png")),
+                   f"{name}: the design laid on the skin, the needle along the normal")
+    dist = d.distortion
+    log.info("surface %s: %d points, distortion area %.4f %% angle %.4f %%, IK %s %%, "
+             "tilt worst %.2e deg, needle %s deg from vertical%s", name,
+             len(d.skin.kind), 100 * dist.area_worst, 100 * dist.angle_worst,
+             metrics["ik_converged_pct"], float(np.max(d.tilt_deg)),
+             metrics["needle_from_vertical_deg"],
+             f"; the phantom {reach.summary()['reachable_pct']} % reachable"
+             if reach is not None else "")
+
+
+if __name__ == "__main__":
+    run_stage("surface", main)

@@ -1,0 +1,132 @@
+"""A drawing on a curved surface, end to end in the library (issue 33): the ``surface``
+settings, :func:`tattotronix.app.onskin.plan_on_surface` and the ``surface`` stage.
+
+What is tested: the config group (``surface=panel`` the default, ``forearm`` and
+``mesh`` composed from it); on the phantom, the emblem laid across the limb is solved at
+every point with the needle along the inward normal (tilt error <= 1e-3 deg, needles 40+
+deg from vertical at its ends), every marking point lies at the marking depth along its
+normal from the phantom's exact surface, the drawing is timed without a step split and
+is collision-free with the limb at the margin; the same design on the phantom exported
+as a noisy STL plans with its distortion reported; refusals in one line: the panel (not
+a curved surface), a mesh without a file, a distortion bound of 0, a placement on the
+underside (naming the part out of reach), a limb placed where the arm folds into itself
+(naming the links); the stage writes its npz, metrics and figure.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tattotronix.app.onskin import SkinDrawing, plan_on_surface
+from tattotronix.config.params import compose_settings
+from tattotronix.config.schema import SurfaceKind
+from tattotronix.errors import TattotronixError
+from tattotronix.path.kinds import MARK
+from tattotronix.robot.description import build_description
+from tests.test_surface import PHANTOM, _stl, phantom_mesh
+
+ROOT = Path(__file__).resolve().parents[1]
+#: the built-in drawing on the phantom (dvc.yaml, ``surfaces``): the emblem 60 mm wide
+#: around the limb (conf/surface/forearm.yaml's placement)
+ACROSS = ["surface=forearm", "mask.width_mm=60"]
+
+
+def _plan(overrides: list[str]) -> SkinDrawing:
+    cfg = compose_settings(overrides)
+    return plan_on_surface(cfg, "emblem", "emblem", build_description(cfg.robot))
+
+
+@pytest.fixture(scope="module")
+def across() -> SkinDrawing:
+    return _plan(ACROSS)
+
+
+def test_the_surface_group_defaults_to_the_panel() -> None:
+    assert compose_settings([]).surface.kind is SurfaceKind.panel
+    fore = compose_settings(["surface=forearm"]).surface
+    assert fore.kind is SurfaceKind.forearm and fore.phantom.elbow_width_mm == 80.0
+    mesh = compose_settings(["surface=mesh", "surface.mesh_file=scan.stl"]).surface
+    assert mesh.kind is SurfaceKind.mesh and mesh.mesh_file == "scan.stl"
+    assert mesh.phantom == fore.phantom  # one set of defaults
+
+
+def test_the_emblem_across_the_limb_is_solved_along_the_normal(across: SkinDrawing) -> None:
+    d = across
+    assert d.ik.converged.all()
+    assert float(d.tilt_deg.max()) <= 1e-3
+    mark = d.skin.kind == MARK
+    assert float(d.from_vertical_deg[mark].max()) >= 40.0  # it wraps around the limb
+    assert d.distortion.area_worst <= 0.005 and d.distortion.angle_worst <= 0.005
+    # every marking point at the marking depth along its normal from the exact surface
+    cone = d.surface.cone
+    assert cone is not None
+    plunge = float(compose_settings(ACROSS).toolpath.plunge_mm)
+    skin = d.skin.xyz_mm[mark] - plunge * d.skin.axis[mark]  # back out along the normal
+    inv = np.linalg.inv(cone.pose)
+    local = skin @ inv[:3, :3].T + inv[:3, 3]
+    a, b = cone.semi_axes(local[:, 0])
+    assert np.abs(np.hypot(local[:, 1] / a, local[:, 2] / b) - 1.0).max() * b.min() < 1e-6
+    # and the needle axis is the inward normal there
+    theta = np.arctan2(local[:, 2] / b, local[:, 1] / a)
+    normal = cone.posed(cone.normal(local[:, 0], theta), vectors=True)
+    assert np.abs(d.skin.axis[mark] + normal).max() < 1e-9
+    s = d.summary()
+    assert s["ik_converged_pct"] == 100.0 and s["surface"] == "forearm"
+    # timed as drawn (no step split by the time law), and collision-free with the limb in
+    # the panel's place, every link and the pen at the margin
+    assert len(d.trajectory.t) == len(d.skin.kind) and d.trajectory.duration_s > 0
+    assert not d.clearance.events and "tattoo_pen_link|limb" in d.clearance.pair_names
+    assert float(d.clearance.min_clearance_m.min()) >= 1e-3
+
+
+def test_a_scanned_phantom_plans_with_its_distortion_reported(tmp_path: Path) -> None:
+    v, f = phantom_mesh(PHANTOM)  # in the limb's own frame, posed as the phantom is
+    file = _stl(tmp_path / "arm.stl", v, f)
+    # the placement: the phantom's top at 150 mm along it
+    top = PHANTOM.point(np.array([150.0]), np.radians([90.0]))[0]
+    d = _plan(["surface=mesh", f"surface.mesh_file={file}",
+               f"surface.mesh_at_mm=[{top[0]},{top[1]},{top[2]}]", "mask.width_mm=40",
+               "surface.max_distortion_pct=5"])
+    assert d.surface.kind == "mesh" and d.ik.converged.all() and not d.clearance.events
+    assert 0.0 < d.distortion.area_worst < 0.05  # a scan is not exactly developable
+    assert d.summary()["distortion"]["samples"] > 100
+
+
+@pytest.mark.parametrize(("overrides", "match"), [
+    ([], "surface=panel is the flat panel"),
+    (["surface=mesh"], "needs surface.mesh_file"),
+    (["surface=mesh", "surface.mesh_file=/nowhere/arm.stl"], "arm.stl"),
+    ([*ACROSS, "surface.max_distortion_pct=0"], r"distorted by .* at design"),
+    ([*ACROSS, "surface.around_deg=270"], r"over part of the design: .* within design u"),
+    ([*ACROSS, "surface.origin_mm=[140,-110,30]", "surface.yaw_deg=90"],
+     r"refused: .* collide at t ="),
+    ([*ACROSS, "surface.along_mm=500"], "off the phantom"),
+])
+def test_bad_placements_are_refused_in_one_line(overrides: list[str], match: str) -> None:
+    with pytest.raises(TattotronixError, match=match) as err:
+        _plan(overrides)
+    assert "\n" not in str(err.value)
+
+
+def test_the_stage_writes_its_outputs(tmp_path: Path) -> None:
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "stages" / "surface.py"), "artwork.name=emblem-forearm",
+         "artwork.source=emblem", *ACROSS, "surface.reach_along=4", "surface.reach_around=8",
+         f"paths.out={tmp_path}"], cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
+    metrics = json.loads((tmp_path / "metrics" / "surface" / "emblem-forearm.json").read_text())
+    assert metrics["ik_converged_pct"] == 100.0
+    assert metrics["needle_from_vertical_deg"]["max"] >= 40.0
+    assert metrics["reach"]["points"] == 32
+    arrays = np.load(tmp_path / "surface" / "emblem-forearm.npz")
+    assert arrays["q"].shape == (metrics["points"], 5)
+    assert arrays["reachable"].shape == (4, 8)
+    assert (tmp_path / "figures" / "surface" / "emblem-forearm.png").stat().st_size > 10_000
