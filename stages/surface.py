@@ -53,6 +53,8 @@ def main(cfg: Config, out: Outputs) -> None:
                            n_around=int(s.reach_around),
                            margin_mm=float(s.reach_margin_mm))
     metrics = d.summary()
+    metrics["artwork_width_mm"] = (None if cfg.mask.width_mm is None
+                                   else float(cfg.mask.width_mm))
     if reach is not None:
         metrics["reach"] = reach.summary()
     arrays: dict[str, ArrayLike] = {

@@ -47,6 +47,18 @@ COVERED: dict[str, tuple[str, ...]] = {
         NOT_RUN, "the test suite itself; `bash .ci/run` runs it, and "
         "tests/test_docs.py::test_readme_opens_with_the_two_fresh_machine_commands checks "
         "that .ci/run holds `python -m pytest`"),
+    # --- curved surfaces
+    "python stages/surface.py surface=forearm mask.width_mm=60": (
+        TEST, "tests/test_onskin_plan.py::test_the_stage_writes_its_outputs",
+        "the command with the built-in drawing's name, a coarser reachability map and a "
+        "scratch output folder; its metrics, npz and figure checked"),
+    ("python stages/surface.py surface=mesh surface.mesh_file=arm.stl "
+     "surface.mesh_unit_mm=10"): (
+        TEST, "tests/test_onskin_plan.py::"
+        "test_a_scanned_phantom_plans_with_its_distortion_reported",
+        "the same settings through the library (plan_on_surface, the stage's body) on the "
+        "phantom exported as a noisy, re-triangulated STL in mm, a smaller design placed "
+        "on its top; the stage around the body is the one the forearm's test runs"),
     # --- the job server
     "tattotronix serve": (
         TEST, "tests/test_server.py::"
