@@ -59,3 +59,26 @@ def test_no_library_module_edits_sys_path() -> None:
 def test_the_sys_path_check_sees_an_edit() -> None:
     tree = ast.parse("import sys\nsys.path.insert(0, 'x')\nfrom sys import path\n")
     assert _refers_to_sys_path(tree) == [2, 3]
+
+
+def test_a_run_by_hand_composes_its_config_once() -> None:
+    """Hydra reads ``hydra.mode`` from a whole first composition before the job's; a run
+    by hand answers it (``None``: the command line decides, as conf/ never sets it)
+    without composing, unless an override sets ``hydra.mode``; Hydra's own comes back."""
+    from hydra._internal.hydra import Hydra
+
+    from tattotronix.stage import _one_compose
+
+    own = Hydra.__dict__["get_mode"]
+    with _one_compose(["robot.tool=none"]):
+        assert Hydra.__dict__["get_mode"] is not own
+        assert Hydra.get_mode(None, "config", ["no_such_key=1"]) is None  # type: ignore[arg-type]
+    assert Hydra.__dict__["get_mode"] is own
+    with _one_compose(["hydra.mode=MULTIRUN"]):
+        assert Hydra.__dict__["get_mode"] is own
+    # what the skipped composition would have read: conf/ leaves hydra.mode unset
+    from hydra import compose, initialize_config_dir
+
+    with initialize_config_dir(config_dir=str(ROOT / "conf"), version_base="1.3"):
+        cfg = compose(config_name="config", return_hydra_config=True)
+    assert cfg.hydra.mode is None
