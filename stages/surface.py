@@ -55,8 +55,9 @@ def main(cfg: Config, out: Outputs) -> None:
     metrics = d.summary()
     metrics["artwork_width_mm"] = (None if cfg.mask.width_mm is None
                                    else float(cfg.mask.width_mm))
-    if reach is not None:
-        metrics["reach"] = reach.summary()
+    reach_figures = None if reach is None else reach.summary()
+    if reach_figures is not None:
+        metrics["reach"] = reach_figures
     arrays: dict[str, ArrayLike] = {
         "vertices_mm": d.surface.vertices, "faces": d.surface.faces,
         "xyz_mm": d.skin.xyz_mm, "axis": d.skin.axis, "kind": d.skin.kind,
@@ -76,8 +77,8 @@ def main(cfg: Config, out: Outputs) -> None:
              len(d.skin.kind), 100 * dist.area_worst, 100 * dist.angle_worst,
              metrics["ik_converged_pct"], float(np.max(d.tilt_deg)),
              metrics["needle_from_vertical_deg"],
-             f"; the phantom {reach.summary()['reachable_pct']} % reachable"
-             if reach is not None else "")
+             f"; the phantom {reach_figures['reachable_pct']} % reachable"
+             if reach_figures is not None else "")
 
 
 if __name__ == "__main__":

@@ -3,8 +3,8 @@ on the panel, laid on the skin by the surface's chart, and solved with the needl
 the inward normal at every point.
 
 :func:`plan_on_surface` runs the artwork, mask and toolpath steps as a plan does
-(:func:`~tattotronix.app.pipeline.draft_drawing`'s code; the panel's reach check is not
-the skin's), centres the design on its marking points, measures the chart's distortion
+(:func:`~tattotronix.app.pipeline.draft_drawing`, without the panel's reach check: it
+is not the skin's), centres the design on its marking points, measures the chart's distortion
 over the design's footprint and refuses it past ``surface.max_distortion_pct``, carries
 the path onto the surface (:func:`~tattotronix.path.onskin.carry_path`: heights along the
 normal, equal arc length, no chord straying 0.01 mm) and solves the IK with each point's
@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from tattotronix.app.pipeline import artwork_inputs
+from tattotronix.app.pipeline import draft_drawing
 from tattotronix.collision.check import TrajectoryClearance, check_trajectory
 from tattotronix.collision.model import CollisionModel
 from tattotronix.config.schema import Config
@@ -33,10 +33,10 @@ from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.kinematics import Chain
 from tattotronix.kinematics.ik import IkOptions, IkResult, ik_options, solve_path
+from tattotronix.kinematics.onsurface import angle_deg
 from tattotronix.path.kinds import MARK
 from tattotronix.path.onskin import SkinPath, carry_path
-from tattotronix.path.params import ToolpathParams
-from tattotronix.path.plan import Toolpath, plan_toolpath
+from tattotronix.path.plan import Toolpath
 from tattotronix.robot.description import RobotDescription
 from tattotronix.surface.chart import Distortion, distortion
 from tattotronix.surface.setup import WorkSurface, work_surface
@@ -144,13 +144,12 @@ def plan_on_surface(cfg: Config, source: str | Path | None, name: str,
 
     Raises:
         TattotronixError: ``surface=panel``, a bad mesh, unreadable art or no ink, a
-            distortion past the bound (naming where), a design past the surface, or a
-            placement the arm cannot reach (naming the part).
+            needle too wide for the art, a distortion past the bound (naming where), a
+            design past the surface, a placement the arm cannot reach (naming the part),
+            or a drawing that collides (naming the bodies and the time).
     """
     surface = work_surface(cfg.surface)
-    _, mask, vector = artwork_inputs(cfg, source, name, desc, reach=False)
-    params = ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel)
-    tp = plan_toolpath(mask, params, vector=vector)
+    tp = draft_drawing(cfg, source, name, desc, reach=False).toolpath
     uvz = np.asarray(tp.path.uvz_mm, dtype=np.float64)
     kind = np.asarray(tp.path.kind, dtype=np.int8)
     centre, box = _footprint(uvz, kind)
@@ -171,10 +170,9 @@ def plan_on_surface(cfg: Config, source: str | Path | None, name: str,
             f"design: {_unreached(skin.uvz_mm[:, :2], failed, box)}; move the design "
             "(surface.along_mm, surface.around_deg), the limb (surface.origin_mm, "
             "surface.yaw_deg), or make it smaller; nothing was planned")
-    _, z = chain.fk(res.q)
-    tilt = np.degrees(np.arccos(np.clip(np.einsum("ij,ij->i", z, skin.axis), -1.0, 1.0)))
-    vertical = np.degrees(np.arccos(np.clip(-skin.axis[:, 2], -1.0, 1.0)))
-    tcp, _ = chain.fk(res.q)
+    tcp, z = chain.fk(res.q)
+    tilt = angle_deg(z, skin.axis)
+    vertical = angle_deg(skin.axis, np.array([0.0, 0.0, -1.0]))
     path = JointPath.from_arrays(desc.joint_names, res.q, tcp, skin.kind, skin.uvz_mm)
     limits = JointLimits.from_description(desc, timing.accel_rad_s2)
     traj = plan_trajectory(path, chain, limits, timing)

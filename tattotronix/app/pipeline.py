@@ -212,15 +212,16 @@ class DraftedDrawing:
 
 
 def draft_drawing(cfg: Config, source: str | Path | None, name: str,
-                  desc: RobotDescription) -> DraftedDrawing:
+                  desc: RobotDescription, *, reach: bool = True) -> DraftedDrawing:
     """The artwork, mask and toolpath stages in memory: a fifth of a plan's time, what a
-    page shows while the plan is timed.
+    page shows while the plan is timed. ``reach=False`` leaves out the panel's reach
+    check (:func:`artwork_inputs`).
 
     Raises:
         TattotronixError: unreadable art, no ink, a drawing off the panel or out of reach,
             a needle too wide for it.
     """
-    art, mask, vector = artwork_inputs(cfg, source, name, desc)
+    art, mask, vector = artwork_inputs(cfg, source, name, desc, reach=reach)
     params = ToolpathParams.from_settings(cfg.toolpath, cfg.mask, cfg.robot.panel)
     tp = plan_toolpath(mask, params, vector=vector)
     check_needle(tp, mask, params.needle_width_mm, cfg.toolpath.ink_res_mm)

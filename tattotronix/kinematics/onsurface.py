@@ -34,7 +34,7 @@ from tattotronix.kinematics.ik import (
 )
 from tattotronix.surface.cone import EllipticCone
 
-__all__ = ["SurfaceReach", "cone_reach"]
+__all__ = ["SurfaceReach", "angle_deg", "cone_reach"]
 
 
 def _serpentine(rows: int, cols: int) -> NDArray[np.int64]:
@@ -46,6 +46,13 @@ def _serpentine(rows: int, cols: int) -> NDArray[np.int64]:
 Array = NDArray[np.float64]
 #: rounds of solving unreached points from a reached neighbour's pose
 _GROW_ROUNDS = 50
+
+
+def angle_deg(a: Array, b: Array) -> Array:
+    """(N,) angles between unit vectors ``a`` (N, 3) and ``b`` ((N, 3) or (3,)), degrees:
+    a needle's tilt from the inward normal, or its angle from straight down."""
+    dot = np.sum(np.asarray(a) * np.asarray(b), axis=-1)
+    return np.asarray(np.degrees(np.arccos(np.clip(dot, -1.0, 1.0))), dtype=np.float64)
 
 
 @dataclass(frozen=True)
@@ -155,10 +162,9 @@ def cone_reach(chain: Chain, cone: EllipticCone, depth_mm: float, ik: IkOptions,
     cond = np.full(len(x), np.nan)
     if converged.any():
         _, z = chain.fk(q[converged])
-        tilt[converged] = np.degrees(np.arccos(np.clip((z * -normal[converged]).sum(axis=1),
-                                                       -1.0, 1.0)))
+        tilt[converged] = angle_deg(z, -normal[converged])
         cond[converged] = conditioning(chain, q[converged]).cond
-    vertical = np.degrees(np.arccos(np.clip(normal[:, 2], -1.0, 1.0)))
+    vertical = angle_deg(-normal, np.array([0.0, 0.0, -1.0]))
 
     def grid(a: NDArray[np.generic]) -> NDArray[np.generic]:
         return a.reshape(n_along, n_around, *a.shape[1:])

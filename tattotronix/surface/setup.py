@@ -54,6 +54,7 @@ class WorkSurface:
         faces: (F, 3) its triangles, wound outward.
         cone: the phantom (None for a mesh).
         settings: where the design goes (``surface``).
+        pose: 4x4 (mm) from the limb's (or the mesh file's) frame to the arm's.
     """
 
     kind: str
@@ -61,12 +62,12 @@ class WorkSurface:
     faces: Faces
     cone: EllipticCone | None
     settings: SurfaceConfig
+    pose: Array
 
     @property
     def axis(self) -> Array:
         """The limb's axis (the design's ``u`` at no turn) in the arm's frame."""
-        pose = bench_pose(list(self.settings.origin_mm), float(self.settings.yaw_deg))
-        return np.asarray(pose[:3, 0], dtype=np.float64)
+        return np.asarray(self.pose[:3, 0], dtype=np.float64)
 
     def placement_mm(self) -> Array:
         """The design's centre on the surface, arm frame, mm."""
@@ -79,8 +80,7 @@ class WorkSurface:
             return np.asarray(self.vertices[int(np.argmax(self.vertices[:, 2]))],
                               dtype=np.float64)
         at = np.asarray(s.mesh_at_mm, dtype=np.float64)
-        pose = bench_pose(list(s.origin_mm), float(s.yaw_deg))
-        return np.asarray(pose[:3, :3] @ at + pose[:3, 3], dtype=np.float64)
+        return np.asarray(self.pose[:3, :3] @ at + self.pose[:3, 3], dtype=np.float64)
 
     def chart(self, radius_mm: float) -> Chart:
         """The chart of the design placed by the settings; ``radius_mm`` is the design's
@@ -116,12 +116,12 @@ def work_surface(s: SurfaceConfig) -> WorkSurface:
                 f"surface.along_mm={float(s.along_mm):g} is off the phantom (0 to "
                 f"{cone.length_mm:g} mm from its elbow end)")
         v, f = cone.mesh(*PHANTOM_MESH)
-        return WorkSurface("forearm", v, f, cone, s)
+        return WorkSurface("forearm", v, f, cone, s, pose)
     if s.kind is SurfaceKind.mesh:
         if not s.mesh_file:
             raise TattotronixError("surface=mesh needs surface.mesh_file=PATH (an STL, PLY "
                                    "or OBJ), with surface.mesh_unit_mm (10 for cm)")
         v, f = load_mesh(s.mesh_file, float(s.mesh_unit_mm), pose)
-        return WorkSurface("mesh", v, f, None, s)
+        return WorkSurface("mesh", v, f, None, s, pose)
     raise TattotronixError("surface=panel is the flat panel, not a curved surface: give "
                            "surface=forearm or surface=mesh")

@@ -367,20 +367,7 @@ def _box_filter_law(t: Array, s: Array, v: Array, u: Array, window: float
     s_end = float(s[-1])
 
     def at(tq: Array) -> tuple[Array, Array, Array]:
-        k = np.clip(np.searchsorted(t, tq, side="right") - 1, 0, n_pts - 2)
-        tau = tq - t[k]
-        uk = u[k]
-        pos = s[k] + v[k] * tau + uk * tau**2 / 2
-        vel = v[k] + uk * tau
-        area = cum[k] + s[k] * tau + v[k] * tau**2 / 2 + uk * tau**3 / 6
-        before, after = tq < 0.0, tq > t_end
-        pos = np.where(before, s[0], np.where(after, s_end, pos))
-        vel = np.where(before | after, 0.0, vel)
-        area = np.where(before, s[0] * tq,
-                        np.where(after, cum[-1] + s_end * (tq - t_end), area))
-        return pos, vel, area
-
-    def area_pos(tq: Array) -> tuple[Array, Array, Array]:  # at(tq), area first
+        """The law's area (the integral of ``s``), position and speed at times ``tq``."""
         k = np.searchsorted(t, tq, side="right") - 1
         np.maximum(k, 0, out=k)  # np.clip's, without its per-call checks
         np.minimum(k, n_pts - 2, out=k)
@@ -390,11 +377,10 @@ def _box_filter_law(t: Array, s: Array, v: Array, u: Array, window: float
         pos = sk + tau * (vk + vel) / 2
         inside = cum[k] + tau * (sk + tau * (vk / 2 + uk * tau / 6))
         before, after = tq < 0.0, tq > t_end
-        out = before | after
         return (np.where(before, s[0] * tq,
                          np.where(after, cum[-1] + s_end * (tq - t_end), inside)),
                 np.where(before, s[0], np.where(after, s_end, pos)),
-                np.where(out, 0.0, vel))
+                np.where(before | after, 0.0, vel))
 
     half = window / 2
     # s_f(tau) = (A(tau + W/2) - A(tau - W/2)) / W with A the integral of s: a point's
@@ -411,7 +397,7 @@ def _box_filter_law(t: Array, s: Array, v: Array, u: Array, window: float
     tol = 1e-12
     for _ in range(100):
         tq = tf[todo]
-        a, p, w = area_pos(np.concatenate((tq + half, tq - half)))
+        a, p, w = at(np.concatenate((tq + half, tq - half)))
         m = len(todo)
         f = a[:m] - a[m:] - goal[todo]
         slope = p[:m] - p[m:]
@@ -429,8 +415,8 @@ def _box_filter_law(t: Array, s: Array, v: Array, u: Array, window: float
         if not todo.size:
             break
     tf[0], tf[-1] = -half, t_end + half
-    pp, vp, _ = at(tf + half)
-    pm, vm, _ = at(tf - half)
+    _, pp, vp = at(tf + half)
+    _, pm, vm = at(tf - half)
     sdot_f, sddot_f = (pp - pm) / window, (vp - vm) / window
     sdot_f[[0, -1]] = 0.0  # at rest (the window's mean is 0 there, to rounding)
     sddot_f[[0, -1]] = 0.0
