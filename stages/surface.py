@@ -5,11 +5,14 @@ surface.mesh_file=PATH``. Plans the artwork's design in its own plane, lays it o
 surface at ``surface.along_mm``/``around_deg``/``turn_deg`` (the chart's distortion over
 the design checked against ``surface.max_distortion_pct``), carries the needle path onto
 it along the normals and solves the IK with the needle along the inward normal at every
-point (tattotronix/app/onskin.py); on the phantom, maps where the arm can put the needle
-along the normal (tattotronix/kinematics/onsurface.py). Writes
-``data/surface/<name>.npz`` (the surface's mesh, the skin path, the joint angles, the
-reachability map), ``data/metrics/surface/<name>.json`` and
-``data/figures/surface/<name>.png``.
+point, then plays it closed loop on ``backend`` (a simulated plant) and scores the tip's
+tracking and the ink in the skin against the plan and the artwork, in the design's chart
+(tattotronix/app/onskin.py); on the phantom, maps where the arm can put the needle along
+the normal (tattotronix/kinematics/onsurface.py). Writes ``data/surface/<name>.npz`` (the
+surface's mesh, the skin path, the joint angles, the reachability map),
+``data/metrics/surface/<name>.json`` (its ``run`` section: the simulation) and
+``data/figures/surface/<name>.png`` and ``<name>-ink.png`` (the simulated ink against the
+artwork).
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import logging
 import numpy as np
 from numpy.typing import ArrayLike
 
-from tattotronix.app.onskin import plan_on_surface
+from tattotronix.app.onskin import plan_on_surface, simulate_on_surface
 from tattotronix.art.artwork import artwork_name
 from tattotronix.config.schema import Config
 from tattotronix.io.artifacts import PROVENANCE_KEY
@@ -32,6 +35,7 @@ from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain
 from tattotronix.kinematics.ik import ik_options
 from tattotronix.kinematics.onsurface import cone_reach
+from tattotronix.path.inkfigure import artwork_ink_figure
 from tattotronix.report.surface import surface_figure
 from tattotronix.robot.description import build_description
 from tattotronix.stage import run_stage
@@ -44,6 +48,8 @@ def main(cfg: Config, out: Outputs) -> None:
     name = artwork_name(cfg.artwork)
     desc = build_description(cfg.robot)
     d = plan_on_surface(cfg, cfg.artwork.source, name, desc)
+    run = simulate_on_surface(cfg, out.data, desc, d, name,
+                              progress=bool(cfg.draw.progress))
     s = cfg.surface
     reach = None
     if d.surface.cone is not None:
@@ -58,6 +64,8 @@ def main(cfg: Config, out: Outputs) -> None:
     reach_figures = None if reach is None else reach.summary()
     if reach_figures is not None:
         metrics["reach"] = reach_figures
+    ran = run.summary()
+    metrics["run"] = {"backend": cfg.backend.name, **ran}
     arrays: dict[str, ArrayLike] = {
         "vertices_mm": d.surface.vertices, "faces": d.surface.faces,
         "xyz_mm": d.skin.xyz_mm, "axis": d.skin.axis, "kind": d.skin.kind,
@@ -71,6 +79,13 @@ def main(cfg: Config, out: Outputs) -> None:
     out.write_json(out.path("metrics", "surface", f"{name}.json"), metrics)
     surface_figure(d, reach, out.tmp_path(out.path("figures", "surface", f"{name}.png")),
                    f"{name}: the design laid on the skin, the needle along the normal")
+    artwork_ink_figure(
+        run.art, run.sim_ink, run.grid,
+        out.tmp_path(out.path("figures", "surface", f"{name}-ink.png")),
+        f"{name} on the {d.surface.kind} ({cfg.backend.name}): the simulated ink in the "
+        f"skin, in the design's chart, against the artwork (needle "
+        f"{float(cfg.toolpath.needle_width_mm):g} mm)",
+        run.artwork if run.artwork is not None else f"ink {run.reason}")
     dist = d.distortion
     log.info("surface %s: %d points, distortion area %.4f %% angle %.4f %%, IK %s %%, "
              "tilt worst %.2e deg, needle %s deg from vertical%s", name,
@@ -79,6 +94,9 @@ def main(cfg: Config, out: Outputs) -> None:
              metrics["needle_from_vertical_deg"],
              f"; the phantom {reach_figures['reachable_pct']} % reachable"
              if reach_figures is not None else "")
+    log.info("surface %s on %s: %s; marking max %s um, settled mean %s um; ink %s", name,
+             cfg.backend.name, ran["verdict"], ran["marking_max_um"], ran["settled_mean_um"],
+             run.ink.text())
 
 
 if __name__ == "__main__":

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tattotronix.app.onskin import SkinDrawing, plan_on_surface
+from tattotronix.app.onskin import SkinDrawing, plan_on_surface, simulate_on_surface
 from tattotronix.config.params import compose_settings
 from tattotronix.config.schema import SurfaceKind
 from tattotronix.errors import TattotronixError
@@ -115,14 +115,28 @@ def test_bad_placements_are_refused_in_one_line(overrides: list[str], match: str
     assert "\n" not in str(err.value)
 
 
-def test_the_stage_writes_its_outputs(tmp_path: Path) -> None:
+def test_the_stage_writes_its_outputs(tmp_path: Path, draw_data: Path) -> None:
+    """The README's command (the built-in drawing's name, a coarse reach map): the plan,
+    the reach map, and the drawing simulated on MuJoCo with its ink scored in the skin."""
     env = {**os.environ, "MPLBACKEND": "Agg"}
+    out = tmp_path / "out"
     run = subprocess.run(
         [sys.executable, str(ROOT / "stages" / "surface.py"), "artwork.name=emblem-forearm",
          "artwork.source=emblem", *ACROSS, "surface.reach_along=4", "surface.reach_around=8",
-         f"paths.out={tmp_path}"], cwd=tmp_path, env=env, capture_output=True, text=True)
+         "draw.progress=false", f"paths.data={draw_data}", f"paths.out={out}"],
+        cwd=tmp_path, env=env, capture_output=True, text=True)
     assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
+    tmp_path = out
     metrics = json.loads((tmp_path / "metrics" / "surface" / "emblem-forearm.json").read_text())
+    sim = metrics["run"]
+    assert sim["backend"] == "mujoco" and sim["verdict"] == "ok", sim
+    # the tip tracks the skin path as it tracks the panel's, and its ink in the skin is
+    # the plan's to a pixel, at the plunge depth along the normal
+    assert sim["settled_mean_um"] <= 2.0 and sim["marking_max_um"] < 50.0, sim
+    assert sim["ink_iou"] > 0.99 and sim["ink_max_dev_mm"] <= 0.05 + 1e-9, sim
+    assert sim["depth_mm"]["min"] > 1.45 and sim["depth_mm"]["max"] < 1.55, sim
+    assert sim["artwork"]["coverage"] > 0.7 and sim["artwork"]["bleed_max_mm"] <= 0.1 + 1e-9
+    assert (tmp_path / "figures" / "surface" / "emblem-forearm-ink.png").stat().st_size > 10_000
     assert metrics["ik_converged_pct"] == 100.0
     assert metrics["needle_from_vertical_deg"]["max"] >= 40.0
     assert metrics["reach"]["points"] == 32
@@ -130,3 +144,11 @@ def test_the_stage_writes_its_outputs(tmp_path: Path) -> None:
     assert arrays["q"].shape == (metrics["points"], 5)
     assert arrays["reachable"].shape == (4, 8)
     assert (tmp_path / "figures" / "surface" / "emblem-forearm.png").stat().st_size > 10_000
+
+
+def test_the_skin_drawing_is_simulated_on_plants_only(across: SkinDrawing,
+                                                      desc: object) -> None:
+    cfg = compose_settings([*ACROSS, "backend=servo"])
+    with pytest.raises(TattotronixError, match="backend=servo: a drawing on the skin is "
+                                                "simulated on mujoco"):
+        simulate_on_surface(cfg, Path("nowhere"), build_description(cfg.robot), across, "e")

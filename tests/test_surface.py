@@ -222,3 +222,40 @@ def test_bad_meshes_get_one_clear_line(tmp_path: Path, case: str, match: str,
     msg = str(err.value)
     assert "\n" not in msg and msg.startswith(("mesh ", "the mesh")), msg
 
+
+
+@settings(max_examples=25, deadline=None)
+@given(elbow=st.floats(50, 110), taper=st.floats(0.5, 1.3), ratio=st.floats(0.5, 1.0),
+       theta=st.floats(-180, 180), rot=st.floats(-180, 180), seed=st.integers(0, 2**16))
+def test_a_tip_near_the_skin_is_located_in_the_chart(elbow: float, taper: float, ratio: float,
+                                                      theta: float, rot: float,
+                                                      seed: int) -> None:
+    """Chart.locate inverts the chart moved along the normal: a point ``h`` along the
+    outward normal of the design point ``uv`` is found at ``uv`` and height ``h``, from a
+    guess half a millimetre off (a simulated tip, located from the planned point it
+    follows)."""
+    cone = EllipticCone(220.0, elbow, elbow * taper, ratio)
+    chart = cone.chart(110.0, theta, rot)
+    rng = np.random.default_rng(seed)
+    half = 0.1 * min(220.0, elbow * min(taper, 1.0) * math.pi)
+    uv = rng.uniform(-half, half, (200, 2))
+    height = rng.uniform(-2.0, 5.0, 200)
+    on = chart.to_surface(uv)
+    got_uv, got_h = chart.locate(on.xyz + height[:, None] * on.normal,
+                                 uv + rng.uniform(-0.5, 0.5, (200, 2)))
+    assert np.abs(got_uv - uv).max() < 1e-4
+    assert np.abs(got_h - height).max() < 1e-6
+
+
+def test_a_point_is_located_on_a_scanned_mesh_as_on_the_exact_surface() -> None:
+    """On the phantom as a mesh (its LSCM chart), a point 1.5 mm in the skin is located
+    within the mesh's own error of its design point and depth."""
+    v, f = phantom_mesh(PHANTOM, jitter=0.0)
+    at = PHANTOM.posed(PHANTOM.point(np.array([110.0]), np.array([0.0])))[0]
+    chart = MeshChart(v, f, at, radius_mm=30.0)
+    rng = np.random.default_rng(7)
+    uv = rng.uniform(-12, 12, (100, 2))
+    on = chart.to_surface(uv)
+    got_uv, got_h = chart.locate(on.xyz - 1.5 * on.normal, uv + 0.3)
+    assert np.abs(got_uv - uv).max() < 0.05
+    assert np.abs(got_h + 1.5).max() < 0.05

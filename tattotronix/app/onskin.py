@@ -12,8 +12,16 @@ needle axis. A point the arm cannot reach refuses the placement, naming the part
 design it is in. The joint path is then timed by the panel's time law (its travel the
 carried one: lifted along the normal, at the clearance from the skin, and no step longer
 than the densify step, so none is split with one needle axis) and checked for collisions
-with the limb in the panel's place, every link and the pen's barrel at the margin. The
-simulated ink on the skin is the next step (docs/surface.md, "What is not done yet").
+with the limb in the panel's place, every link and the pen's barrel at the margin.
+
+:func:`simulate_on_surface` plays the timed drawing closed loop on a simulated plant (the
+panel's controller and plant settings) and scores it as on the panel: the tracking errors
+of the tip (3-D, so the skin's curvature changes nothing), and the ink. The ink is where
+the simulated tip is in the skin, along the surface's normal: each tip is put back in the
+design's chart (:meth:`~tattotronix.surface.chart.Chart.locate`, from the planned point
+nearest it) with its height over the surface, and rasterised there at the needle's width,
+so the skin's ink is compared with the planned ink and with the artwork by the panel's own
+measures (:mod:`tattotronix.path.fidelity`).
 """
 
 from __future__ import annotations
@@ -26,19 +34,34 @@ import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.app.pipeline import draft_drawing
+from tattotronix.app.simulate import run_closed_loop
+from tattotronix.art.mask import InkMask
 from tattotronix.collision.check import TrajectoryClearance, check_trajectory
 from tattotronix.collision.model import CollisionModel
 from tattotronix.config.schema import Config
+from tattotronix.control.drawing import ClosedLoop, Drawing, finite_json
+from tattotronix.control.ink import InkComparison, compare_ink
+from tattotronix.control.tracking import TrackingErrors
 from tattotronix.errors import TattotronixError
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.kinematics import Chain
 from tattotronix.kinematics.ik import IkOptions, IkResult, ik_options, solve_path
 from tattotronix.kinematics.onsurface import angle_deg
+from tattotronix.path.fidelity import (
+    ArtworkFidelity,
+    InkGrid,
+    artwork_fidelity,
+    artwork_on,
+    below_runs,
+    grid_over,
+    rasterise_runs,
+)
 from tattotronix.path.kinds import MARK
 from tattotronix.path.onskin import SkinPath, carry_path
 from tattotronix.path.plan import Toolpath
+from tattotronix.plants import BACKENDS as PLANTS
 from tattotronix.robot.description import RobotDescription
-from tattotronix.surface.chart import Distortion, distortion
+from tattotronix.surface.chart import Chart, Distortion, distortion
 from tattotronix.surface.setup import WorkSurface, work_surface
 from tattotronix.trajectory import (
     JointLimits,
@@ -48,7 +71,7 @@ from tattotronix.trajectory import (
     plan_trajectory,
 )
 
-__all__ = ["SkinDrawing", "plan_on_surface"]
+__all__ = ["SkinDrawing", "SkinRun", "plan_on_surface", "simulate_on_surface"]
 
 Array = NDArray[np.float64]
 #: the grid the chart's distortion is measured on over the design's footprint, mm
@@ -64,10 +87,12 @@ class SkinDrawing:
 
     Attributes:
         surface: the work surface.
+        mask: the ink mask the design was planned on (the artwork, design-plane mm).
         toolpath: the design's toolpath in its own plane (as on the panel).
         centre_mm: the design-plane point put on the placement (the marking points'
             bounding box's centre), mm.
         box_mm: the marking points' footprint ``(u0, v0, u1, v1)`` about it, mm.
+        chart: the design's chart on the surface (design coordinates about ``centre_mm``).
         distortion: the chart's distortion over the footprint.
         skin: the path on the surface (design coordinates about ``centre_mm``).
         ik: the IK of every skin point, the needle along the inward normal.
@@ -78,9 +103,11 @@ class SkinDrawing:
     """
 
     surface: WorkSurface
+    mask: InkMask
     toolpath: Toolpath
     centre_mm: tuple[float, float]
     box_mm: tuple[float, float, float, float]
+    chart: Chart
     distortion: Distortion
     skin: SkinPath
     ik: IkResult
@@ -149,7 +176,8 @@ def plan_on_surface(cfg: Config, source: str | Path | None, name: str,
             or a drawing that collides (naming the bodies and the time).
     """
     surface = work_surface(cfg.surface)
-    tp = draft_drawing(cfg, source, name, desc, reach=False).toolpath
+    draft = draft_drawing(cfg, source, name, desc, reach=False)
+    tp = draft.toolpath
     uvz = np.asarray(tp.path.uvz_mm, dtype=np.float64)
     kind = np.asarray(tp.path.kind, dtype=np.int8)
     centre, box = _footprint(uvz, kind)
@@ -187,4 +215,103 @@ def plan_on_surface(cfg: Config, source: str | Path | None, name: str,
         raise TattotronixError(f"the drawing on the limb is refused: {clear.message()}; "
                                "move the limb (surface.origin_mm, surface.yaw_deg) or the "
                                "design on it")
-    return SkinDrawing(surface, tp, centre, box, dist, skin, res, tilt, vertical, traj, clear)
+    return SkinDrawing(surface, draft.mask, tp, centre, box, chart, dist, skin, res, tilt,
+                       vertical, traj, clear)
+
+
+@dataclass(frozen=True)
+class SkinRun:
+    """A drawing on the skin simulated closed loop, its ink in the design's chart.
+
+    Attributes:
+        loop: the closed-loop run.
+        errors: the tip's tracking errors.
+        grid: the ink raster, over the design plane (the artwork's mm).
+        uvz_mm, uvz_ref_mm: (S, 3) every simulated and reference tip in the chart: design
+            point and height over the skin along its normal (negative: in the skin).
+        sim_ink, plan_ink: the simulated and the planned ink on ``grid``.
+        art: the artwork on ``grid``.
+        ink: the simulated ink against the planned ink.
+        artwork: the simulated ink against the artwork (None: a run that saturated or
+            diverged is not scored; ``reason`` says why).
+        reason: why the ink is not scored ("" when it is).
+    """
+
+    loop: ClosedLoop
+    errors: TrackingErrors
+    grid: InkGrid
+    uvz_mm: Array
+    uvz_ref_mm: Array
+    sim_ink: NDArray[np.bool_]
+    plan_ink: NDArray[np.bool_]
+    art: NDArray[np.bool_]
+    ink: InkComparison
+    artwork: ArtworkFidelity | None
+    reason: str
+
+    def summary(self) -> JsonDict:
+        """The run's figures (the surface stage's ``run`` metrics): the panel run's
+        tracking figures and verdict, the ink against the plan and against the artwork,
+        and the deepest and shallowest simulated marking depth."""
+        figures = self.loop.metrics(self.errors)
+        down = self.errors.down  # at the run's samples
+        depth = -self.uvz_mm[self.loop.samples()][down, 2]
+        figures.update(finite_json({
+            **self.ink.metrics(),
+            "artwork": None if self.artwork is None else self.artwork.metrics(),
+            "artwork_reason": self.reason,
+            "depth_mm": ({"min": round(float(depth.min()), 5),
+                          "max": round(float(depth.max()), 5)} if len(depth) else None)}))
+        return figures
+
+
+def _in_chart(d: SkinDrawing, tips_mm: Array) -> Array:
+    """Tips (arm frame, mm) as artwork-plane points and heights over the skin: each from
+    the planned skin point nearest it (:meth:`Chart.locate`)."""
+    from scipy.spatial import cKDTree
+
+    _, near = cKDTree(d.skin.xyz_mm).query(tips_mm)
+    uv, height = d.chart.locate(tips_mm, d.skin.uvz_mm[near, :2])
+    return np.column_stack([uv + np.asarray(d.centre_mm), height])
+
+
+def simulate_on_surface(cfg: Config, data: Path, desc: RobotDescription, d: SkinDrawing,
+                        name: str, *, progress: bool = False) -> SkinRun:
+    """Play ``d`` closed loop on ``cfg.backend`` (a simulated plant) and score its tracking
+    and its ink on the skin (module docstring).
+
+    Raises:
+        TattotronixError: a backend that is not a simulated plant (the servo plant and the
+            arm draw on the panel only, for now), or what the closed loop refuses.
+    """
+    backend = cfg.backend.name
+    if backend not in PLANTS:
+        raise TattotronixError(
+            f"backend={backend}: a drawing on the skin is simulated on "
+            f"{', '.join(PLANTS)} (the servo plant and the arm draw on the panel only)")
+    traj = d.trajectory
+    drawing = Drawing(name=name, t=np.asarray(traj.t), q=np.asarray(traj.q),
+                      qd=np.asarray(traj.qd), kind=np.asarray(traj.kind, dtype=np.int8),
+                      origin="planned")
+    loop = run_closed_loop(cfg, data, desc, drawing, progress=progress)
+    chain = Chain.from_description(desc)
+    run = loop.run
+    k = len(run.t)
+    tip = chain.fk(run.q)[0] * 1000.0 if k else np.zeros((0, 3))
+    tip_ref = chain.fk(run.ref.q[:k])[0] * 1000.0 if k else np.zeros((0, 3))
+    err = loop.errors(chain, float(cfg.draw.settle_periods), (tip / 1000.0, tip_ref / 1000.0))
+    uvz = _in_chart(d, tip) if k else np.zeros((0, 3))
+    uvz_ref = _in_chart(d, tip_ref) if k else np.zeros((0, 3))
+    res, needle, mask = float(cfg.draw.ink_res_mm), float(cfg.toolpath.needle_width_mm), d.mask
+    corners = np.array([[mask.xs[0], mask.ys[0]], [mask.xs[-1], mask.ys[-1]]])
+    grid = grid_over([uvz[uvz[:, 2] < 0], uvz_ref[uvz_ref[:, 2] < 0], corners], res)
+    sim_ink = rasterise_runs(below_runs(uvz), grid, needle)
+    plan_ink = rasterise_runs(below_runs(uvz_ref), grid, needle)
+    ink = compare_ink(sim_ink, plan_ink, res)
+    reason = loop.judge(err).unscored_ink()
+    if reason:
+        ink = ink.unscored(reason)
+    art = artwork_on(mask, grid)
+    fidelity = None if reason else artwork_fidelity(art, sim_ink, res)
+    return SkinRun(loop, err, grid, uvz, uvz_ref, sim_ink, plan_ink, art, ink, fidelity,
+                   reason)

@@ -52,6 +52,52 @@ class Chart(ABC):
                 the patch a mesh chart was made on), naming it.
         """
 
+    def locate(self, xyz_mm: Array, guess_uv_mm: Array, rounds: int = 12,
+               tol_mm: float = 1e-9) -> tuple[Array, Array]:
+        """The design point and height of 3-D points near the surface: the inverse of the
+        carry ``(u, v, h) -> X(u, v) + h n(u, v)`` (:mod:`tattotronix.path.onskin`), so a
+        simulated needle tip is put back where the plan would have put it.
+
+        Newton's method on the three equations from ``guess_uv_mm`` (the planned point
+        each tip follows; the height's guess along its normal), the Jacobian by central
+        differences. It converges while the height is within the surface's radius of
+        curvature, as a needle's is.
+
+        Args:
+            xyz_mm: (N, 3) points, mm (the surface's frame).
+            guess_uv_mm: (N, 2) design points near each one's answer.
+            rounds: the most Newton steps.
+            tol_mm: a step below this ends the rounds.
+
+        Returns:
+            (N, 2) design points, mm, and (N,) heights along the outward normal, mm
+            (negative: in the skin).
+
+        Raises:
+            TattotronixError: a guess per point missing, or a design point the chart does
+                not cover (:meth:`to_surface`'s message).
+        """
+        p = np.asarray(xyz_mm, dtype=np.float64).reshape(-1, 3)
+        uv = np.array(guess_uv_mm, dtype=np.float64).reshape(-1, 2)
+        if len(uv) != len(p):
+            raise TattotronixError(f"{len(p)} points and {len(uv)} guesses: give one each")
+        on = self.to_surface(uv)
+        height = np.einsum("nk,nk->n", p - on.xyz, on.normal)
+        d = 1e-3
+        probe = np.array([[d, 0.0], [-d, 0.0], [0.0, d], [0.0, -d]])
+        for _ in range(rounds):
+            at = self.to_surface(np.concatenate([uv] + [uv + e for e in probe]))
+            g = (at.xyz + np.tile(height, 5)[:, None] * at.normal).reshape(5, len(uv), 3)
+            n0 = at.normal[:len(uv)]
+            jac = np.stack([(g[1] - g[2]) / (2 * d), (g[3] - g[4]) / (2 * d), n0],
+                           axis=2)  # (N, 3, 3)
+            step = np.linalg.solve(jac, (p - g[0])[..., None])[..., 0]
+            uv += step[:, :2]
+            height += step[:, 2]
+            if float(np.abs(step).max(initial=0.0)) < tol_mm:
+                break
+        return uv, height
+
 
 @dataclass(frozen=True)
 class Distortion:
