@@ -206,6 +206,61 @@ def test_the_drive_acts_one_latency_after_the_command(
     assert first[latency] - first[0.0] == pytest.approx(latency, abs=dt)
 
 
+def test_the_sag_correction_holds_a_loaded_joint_on_its_goal(
+        models: tuple[Path, Path], cfg: Config, desc: RobotDescription,
+        catalogue: tuple[ServoSpec, ...]) -> None:
+    """Under gravity a proportional servo rests ``G(q) / kp`` short of its command (the
+    torque it must hold over its gain); sent ``q + G(q) / kp`` (``compensate``'s sag), it
+    rests on ``q``."""
+    from tattotronix.config.schema import CompensateConfig
+    from tattotronix.control.dynamics import Dynamics
+    from tattotronix.hardware.servo_model import compensate
+
+    specs = tuple(replace(s, lag=True) for s in catalogue)  # the drive as built, no latency
+    settings = PlantSettings.from_settings(cfg.plant, desc.gravity, desc.tip_frame)
+    hold = Dynamics(models[0], desc.gravity).gravity(Q0)
+    kp = np.array([s.kp for s in specs])
+    assert np.abs(hold[1:3]).min() > 0.05  # the shoulder and the elbow carry the arm
+    cmd = np.tile(Q0, (100, 1))  # two seconds: the servos settle
+    short = Q0 - _play(models[1], settings, specs, cmd).shaft[-1]
+    np.testing.assert_allclose(short, hold / kp, rtol=0.03, atol=1e-6)
+    sag_only = CompensateConfig(sag=True, lead=False)
+    sent = compensate(cmd, specs, sag_only, np.tile(hold, (len(cmd), 1)))
+    np.testing.assert_allclose(sent - cmd, np.tile(hold / kp, (len(cmd), 1)), rtol=1e-12)
+    rest = _play(models[1], settings, specs, sent).shaft[-1]
+    assert np.abs(rest - Q0).max() < 0.03 * np.abs(short).max()
+    # a servo without lag (the stiff, exact loop) gets no sag
+    np.testing.assert_array_equal(compensate(cmd, catalogue, sag_only,
+                                             np.tile(hold, (len(cmd), 1))), cmd)
+
+
+def test_the_lead_sends_each_command_its_servos_delay_ahead(
+        catalogue: tuple[ServoSpec, ...]) -> None:
+    """The lead is the latency, half a frame and the drive's own lag (back-EMF over gain);
+    the program samples the trajectory that much later: on a ramp, the ramp ahead."""
+    from tattotronix.hardware.program import compile_program
+    from tattotronix.hardware.servo_model import servo_lead_s
+
+    specs = tuple(replace(s, lag=True, latency_s=0.012) for s in catalogue)
+    lead = servo_lead_s(specs, FRAME_HZ)
+    want = [0.012 + 0.5 / FRAME_HZ + s.band_rad / s.speed_rad_s for s in specs]
+    np.testing.assert_allclose(lead, want, rtol=1e-12)
+    assert (servo_lead_s(catalogue, FRAME_HZ) == 0.0).all()  # stiff: nothing to lead
+    rate = np.array([0.1, -0.05, 0.08, 0.2, -0.1])  # rad/s, well within every limit
+    t = np.array([0.0, 4.0])
+    q = np.stack([Q0, Q0 + 4.0 * rate])
+    qd = np.tile(rate, (2, 1))
+    calib = default_calibration()
+    lo, hi, vel = np.full(5, -3.0), np.full(5, 3.0), np.full(5, 5.0)
+    plain = compile_program(t, q, qd, calib, lo, hi, vel)
+    ahead = compile_program(t, q, qd, calib, lo, hi, vel, lead_s=lead)
+    np.testing.assert_allclose(ahead.q, plain.q)  # the plan's frames are the plan's
+    inside = plain.t + lead.max() <= 4.0
+    np.testing.assert_allclose(ahead.q_sent[inside] - plain.q_sent[inside],
+                               np.tile(rate * lead, (int(inside.sum()), 1)), atol=1e-12)
+    np.testing.assert_allclose(ahead.q_sent[-1], q[-1], atol=1e-12)  # held at the end
+
+
 # --- the measured pulse map ----------------------------------------------------------------
 
 def _measured(w: np.ndarray) -> np.ndarray:
@@ -354,7 +409,8 @@ def test_the_ideal_servo_draws_the_mujoco_plants_ink(desc: RobotDescription, emb
 
 
 @pytest.mark.parametrize("imperfection, correction", [
-    ("backlash", "backlash"), ("deadband", "deadband"), ("nonlinearity", "fit")])
+    ("backlash", "backlash"), ("deadband", "deadband"), ("nonlinearity", "fit"),
+    ("lag", "sag"), ("lag", "lead")])
 def test_each_correction_halves_its_own_error(desc: RobotDescription, emblem: Drawing,
                                               emblem_data: Path, chain: Chain,
                                               imperfection: str, correction: str) -> None:

@@ -233,19 +233,22 @@ def _scored(cfg: Any, data: Path, desc: RobotDescription, loop: Any, tmp: Path,
 def test_the_servo_emblem_is_out_of_tolerance_and_says_the_arm_will_miss_in_mm(
         desc: RobotDescription, plan_data: Path, emblem: Drawing, tmp_path: Path,
         caplog: pytest.LogCaptureFixture) -> None:
-    """Before: ``ok; settled 14115.99 / 18551.72 um ... ink IoU 0.073``."""
+    """Before: ``ok; settled 14115.99 / 18551.72 um ... ink IoU 0.073``. The defaults
+    correct the sag and lead the lag (``hardware.compensate``), not the pulse map's bend:
+    still about 12 mm off."""
     cfg = compose_settings(["backend=servo"])
     loop = run_servo_loop(cfg, plan_data, desc, emblem)
     m, said = _scored(cfg, plan_data, desc, loop, tmp_path, caplog)
     assert m["verdict"] == "out-of-tolerance" and m["stable"] and m["completed"]
     assert m["within_tolerance"] is False and m["tolerance_um"] == pytest.approx(150.0)
-    assert 13_000 < m["settled_mean_um"] < 15_000 and 17_500 < m["marking_max_um"] < 19_500
+    assert 11_000 < m["settled_mean_um"] < 13_500 and 15_000 < m["marking_max_um"] < 18_000
     assert m["ink_iou"] < 0.1 and m["ink_reason"] == ""  # scored: it shows how far off
     worst = length_text(m["marking_max_um"])
     assert worst.endswith(" mm")
     summary = [s for s in said if s.startswith("draw emblem on servo: out-of-tolerance;")]
     assert len(summary) == 1
-    assert (f"settled {length_text(m['settled_mean_um'])} / {worst} (mean / max)"
+    assert (f"settled {length_text(m['settled_mean_um'])} / "
+            f"{length_text(m['settled_max_um'])} (mean / max), marking max {worst}"
             in summary[0])
     warned = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
     assert warned == [

@@ -60,21 +60,47 @@ def build_program(cfg: Config, desc: RobotDescription, t: Array, q: Array, qd: A
     """
     from tattotronix.config.schema import ServoPlantConfig
     from tattotronix.hardware.program import compile_program
-    from tattotronix.hardware.servo_model import compensate, joint_servos
+    from tattotronix.hardware.servo_model import compensate, joint_servos, servo_lead_s
 
     if calib is None:
         calib = calibration_from_config(cfg.hardware, desc.joint_names)
     comp = cfg.hardware.compensate
     adjust = None
-    if comp.backlash or comp.deadband:
+    lead = None
+    if comp.backlash or comp.deadband or comp.sag or comp.lead:
         specs = tuple(servos) if servos is not None else joint_servos(
             cfg.robot, desc.joint_names, calib, ServoPlantConfig())
+        if comp.lead:
+            lead = servo_lead_s(specs, float(calib.frame_hz))
+        frame_s = 1.0 / float(calib.frame_hz)
 
         def adjust(qf: Array) -> Array:
-            return compensate(qf, specs, comp)
+            torque = needed_torque(desc, qf, frame_s) if comp.sag else None
+            return compensate(qf, specs, comp, torque)
     program = compile_program(t, q, qd, calib, desc.lower, desc.upper,
-                              [j.velocity for j in desc.joints], adjust)
+                              [j.velocity for j in desc.joints], adjust, lead)
     return program, calib
+
+
+def needed_torque(desc: RobotDescription, qf: Array, frame_s: float) -> Array:
+    """(F, n) the torque each joint needs along frames ``qf`` (F, n) ``frame_s`` apart,
+    N m: inverse dynamics (Pinocchio's RNEA on the description's URDF: gravity, and the
+    motion's inertia and velocity terms, from the frames' central differences)."""
+    import pinocchio as pin
+
+    from tattotronix.robot.loaders import pinocchio_model
+    from tattotronix.robot.urdf import to_urdf
+
+    model = pinocchio_model(to_urdf(desc), desc.gravity)
+    data = model.createData()
+    qa = np.ascontiguousarray(qf, dtype=np.float64)
+    if len(qa) < 3:
+        vel = np.zeros_like(qa)
+        acc = np.zeros_like(qa)
+    else:
+        vel = np.gradient(qa, frame_s, axis=0)
+        acc = np.gradient(vel, frame_s, axis=0)
+    return np.array([pin.rnea(model, data, qa[k], vel[k], acc[k]) for k in range(len(qa))])
 
 
 def check_drawing_clear(cfg: Config, desc: RobotDescription, t: Array, q: Array) -> None:

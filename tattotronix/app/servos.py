@@ -30,7 +30,7 @@ from __future__ import annotations
 import logging
 import math
 import time
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -112,7 +112,7 @@ def _summary(setup: ServoSetup, cfg: Config) -> JsonDict:
         "servos": [sp.type for sp in setup.specs],
         "imperfections": {k: bool(getattr(s, k)) for k in
                           ("quantise", "deadband", "backlash", "nonlinearity", "lag")},
-        "compensate": {k: bool(getattr(comp, k)) for k in ("fit", "backlash", "deadband")},
+        "compensate": {f.name: bool(getattr(comp, f.name)) for f in fields(comp)},
         "deadband_deg": [math.degrees(sp.deadband_rad) for sp in setup.specs],
         "backlash_deg": [math.degrees(sp.backlash_rad) for sp in setup.specs],
         "latency_ms": [sp.latency_s * 1e3 for sp in setup.specs],

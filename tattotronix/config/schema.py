@@ -872,12 +872,18 @@ class ServoPlantConfig:
 class CompensateConfig:
     """What the servo program corrects for (``deploy``, the real arm and the servo plant;
     docs/servos.md, "Calibration that fixes what it can"). The amounts are the mounted
-    servos' catalogue figures (``robot.servos``); the pulse-map fit comes from the
-    calibration's measured points (``stages/servo_pulse.py record=...``)."""
+    servos' catalogue figures (``robot.servos``) and, for the sag, the mass model; the
+    pulse-map fit comes from the calibration's measured points (``stages/servo_pulse.py
+    record=...``)."""
 
     fit: bool = False  # the servo plant: measure each servo first, deploy through the fit
     backlash: bool = False  # every joint arrives moving one way; reversals pre-load the play
     deadband: bool = False  # counts pushed past the dead band, so each move lands
+    # the pose plus the torque it needs (gravity and motion) over the servo's gain, so the
+    # proportional band does not leave it short (on: the servo study shows what it buys)
+    sag: bool = True
+    # every command sent ahead by the servo's latency, half a frame and its own lag
+    lead: bool = True
 
 
 @settings
@@ -971,6 +977,8 @@ class ServoCase:
     fit: bool = False
     backlash: bool = False
     deadband: bool = False
+    sag: bool = False
+    lead: bool = False
     speed: float = bounded(1.0, lo=0.01, hi=1000)
     only: str | None = None
 

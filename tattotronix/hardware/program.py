@@ -5,8 +5,10 @@ Steps (``deploy`` stage; ``draw.py backend=arm`` compiles the same way):
 1. Sample the trajectory's C1 Hermite reference at every frame, ``t_i = i / frame_hz``.
 2. Clamp each joint to its range, then limit every frame-to-frame change to the joint's
    velocity limit times the frame period (so nothing is commanded faster than allowed).
-3. Optionally, the servo corrections (``hardware.compensate``; backlash and dead band,
-   :func:`tattotronix.hardware.servo_model.compensate`) move each frame's angle.
+3. Optionally, the servo corrections (``hardware.compensate``;
+   :func:`tattotronix.hardware.servo_model.compensate`) move each frame's angle; with a
+   lead, each joint's frames are sent sampled that much later on the trajectory (clamped
+   to its end), so a servo that acts late acts on time.
 4. Each servo's pulse: ``clamp(zero_us + us_per_rad q, min_us, max_us)`` (or the inverse
    of the calibration's measured fit, where it has one), rounded to the
    board's count (``(prescale + 1) / oscillator``, 4.88 us at 50 Hz), never outside the
@@ -145,7 +147,8 @@ class ServoProgram:
 
 def compile_program(t: Array, q: Array, qd: Array, calib: Calibration, lower: ArrayLike,
                     upper: ArrayLike, velocity: ArrayLike,
-                    adjust: Callable[[Array], Array] | None = None) -> ServoProgram:
+                    adjust: Callable[[Array], Array] | None = None,
+                    lead_s: ArrayLike | None = None) -> ServoProgram:
     """Compile a timed joint trajectory into the servo program (see the module docstring).
 
     Args:
@@ -154,18 +157,27 @@ def compile_program(t: Array, q: Array, qd: Array, calib: Calibration, lower: Ar
         lower, upper: joint ranges, rad.
         velocity: joint velocity limits, rad/s.
         adjust: the servo corrections, (F, n) frame angles -> the angles to send.
+        lead_s: (n,) how far ahead each joint's command is sampled, s (None: none).
     """
     frame_hz = float(calib.frame_hz)
     count_us = count_period_us(frame_hz, calib.oscillator_hz)
     n_frames = int(math.floor(float(t[-1]) * frame_hz + 1e-9)) + 1
     tf = np.arange(n_frames, dtype=np.float64) / frame_hz
-    qf = CubicHermiteSpline(t, q, qd, axis=0)(tf)
+    spline = CubicHermiteSpline(t, q, qd, axis=0)
+    qf = spline(tf)
     lo, hi = np.asarray(lower, dtype=np.float64), np.asarray(upper, dtype=np.float64)
     range_clamped = int(np.any((qf < lo) | (qf > hi), axis=1).sum())
     qf = np.clip(qf, lo, hi)
     max_step = np.asarray(velocity, dtype=np.float64) / frame_hz
     qf, rate_clamped = rate_clamp(qf, qf[0], max_step)
-    sent = qf if adjust is None else adjust(qf)
+    ahead = qf
+    if lead_s is not None:
+        lead = np.broadcast_to(np.asarray(lead_s, dtype=np.float64), (qf.shape[1],))
+        end = float(t[-1])
+        ahead = np.column_stack([spline(np.minimum(tf + lead[j], end))[:, j]
+                                 for j in range(qf.shape[1])])
+        ahead, _ = rate_clamp(np.clip(ahead, lo, hi), ahead[0], max_step)
+    sent = ahead if adjust is None else adjust(ahead)
     channels = calib.channels()
     counts = calib.count_table(sent, count_us)
     return ServoProgram(t=tf, q=qf, counts=counts, channels=channels, frame_hz=frame_hz,

@@ -18,10 +18,13 @@ The parts of the model that are not physics (the physics is the MuJoCo servo pla
 * :func:`measure_fit`, the calibration procedure of ``stages/servo_pulse.py`` on a
   simulated servo: the servo is sent ``fit_points`` widths across its travel and the angle
   is read to ``protractor_deg``; the pairs are what a calibration file's ``points`` hold;
-* :func:`compensate`, the servo program's corrections: backlash (each joint arrives at
-  every marking stroke moving one chosen way, and where the plan reverses the command jumps
-  the play first) and the dead band (each move is pushed past half the band, so the servo
-  stops where it was sent instead of short of it).
+* :func:`compensate`, the servo program's corrections: the sag (each frame's angle plus
+  the torque the joint needs there over the servo's gain: a proportional servo holds a
+  load only that far short of its command), backlash (each joint arrives at every marking
+  stroke moving one chosen way, and where the plan reverses the command jumps the play
+  first) and the dead band (each move is pushed past half the band, so the servo stops
+  where it was sent instead of short of it); :func:`servo_lead_s`, how far ahead a
+  joint's commands are sent so that a late servo arrives on time.
 
 Units: rad inside (``_deg``, ``_us``, ``_ms`` as named).
 """
@@ -39,7 +42,7 @@ from tattotronix.errors import TattotronixError
 from tattotronix.hardware.servos import Calibration, PulseFit, ServoChannel
 from tattotronix.plants.servo_plant import ServoSpec
 
-__all__ = ["compensate", "joint_servos", "measure_fit", "with_measured_fits"]
+__all__ = ["compensate", "joint_servos", "measure_fit", "servo_lead_s", "with_measured_fits"]
 
 Array = NDArray[np.float64]
 
@@ -83,7 +86,7 @@ def joint_servos(robot: RobotConfig, joint_names: Sequence[str], calib: Calibrat
                               if servo.nonlinearity and not bus else 0.0),
             armature_kgm2=count * float(c.armature_kgm2),
             latency_s=float(c.latency_ms) * 1e-3 if servo.lag else 0.0,
-            step_rad=step if servo.quantise else 0.0, count=count))
+            step_rad=step if servo.quantise else 0.0, count=count, lag=bool(servo.lag)))
     return tuple(out)
 
 
@@ -132,9 +135,25 @@ def _direction(q: Array, eps: float) -> Array:
     return d
 
 
-def compensate(q: Array, specs: Sequence[ServoSpec], switches: CompensateConfig) -> Array:
+def servo_lead_s(specs: Sequence[ServoSpec], frame_hz: float) -> Array:
+    """(n,) how far ahead each joint's commands are sent, s: the servo's latency, half a
+    frame (a command held over its frame acts, on average, half a frame late) and the
+    servo's own lag, the time constant of its drive against its back-EMF
+    (``back_emf / kp = band / speed``: at a steady speed a proportional servo trails its
+    command by that long). None for a servo without lag (``ServoSpec.lag``)."""
+    return np.array([s.latency_s + 0.5 / float(frame_hz) + s.back_emf / s.kp if s.lag
+                     else 0.0 for s in specs], dtype=np.float64)
+
+
+def compensate(q: Array, specs: Sequence[ServoSpec], switches: CompensateConfig,
+               torque_nm: Array | None = None) -> Array:
     """The servo program's corrections of the frame angles ``q`` (F, n), rad.
 
+    * sag (with ``torque_nm``, (F, n) the torque each joint needs at each frame, N m):
+      ``q + tau / kp`` (nothing on a servo without lag, ``ServoSpec.lag``). A servo's
+      drive gives ``kp`` times its error, so holding ``tau`` it rests ``tau / kp`` short
+      of its command; sent that much further, it rests on the goal (before the dead band,
+      which the dead band's push below takes up);
     * backlash: ``q + d b/2``, ``d`` the way the joint moves next (:func:`_direction`,
       looking ahead past moves under a tenth of the play), so every joint reaches each
       stroke already pressed the way it will move, and the play is taken up where the
@@ -145,6 +164,13 @@ def compensate(q: Array, specs: Sequence[ServoSpec], switches: CompensateConfig)
       resolution, the command is held.
     """
     out = np.array(q, dtype=np.float64, copy=True)
+    if switches.sag:
+        if torque_nm is None or np.shape(torque_nm) != out.shape:
+            raise TattotronixError("the sag correction needs the torque of every joint at "
+                                   f"every frame, {out.shape}; got "
+                                   f"{None if torque_nm is None else np.shape(torque_nm)}")
+        gain = np.array([s.kp if s.lag else math.inf for s in specs])  # stiff: no sag
+        out += np.asarray(torque_nm, dtype=np.float64) / gain
     if switches.backlash:
         for i, s in enumerate(specs):
             if s.backlash_rad > 0:

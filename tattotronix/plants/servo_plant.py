@@ -75,6 +75,9 @@ class ServoSpec:
         step_rad: a bus servo's encoder step, rad (0 for PWM).
         count: servos driving the joint together (the shoulder's mirrored pair: 2); the
             torque and the inertia are theirs summed.
+        lag: the drive as built: proportional over ``band_rad``, late by ``latency_s``,
+            each frame held (False: the stiff, exact loop the plant's ``lag=false`` runs,
+            which nothing needs to lead or push).
     """
 
     type: str
@@ -89,6 +92,7 @@ class ServoSpec:
     latency_s: float
     step_rad: float
     count: int = 1
+    lag: bool = True
 
     @property
     def kp(self) -> float:

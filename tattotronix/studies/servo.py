@@ -7,7 +7,7 @@ would compile it. The cases (``study.servo.cases``) sweep:
 * the servos: as mounted (MG996R, the wrist an SG90), SG90 on every joint, or serial bus
   servos (STS3215) on every joint (``servo.type``);
 * the corrections (``hardware.compensate``: the measured pulse-map fit, backlash, dead
-  band) one at a time and all together;
+  band, sag, lead) one at a time and all together;
 * the speed, for the cycle time it costs;
 * each imperfection of the as-mounted servos alone (``only``), which splits the error by
   its source: quantisation, dead band, backlash, the pulse map's bend, lag.
@@ -51,7 +51,7 @@ __all__ = ["COMPENSATIONS", "IMPERFECTIONS", "STUDY", "ServoStudy"]
 #: the servo plant's imperfections (``servo.<name>``), in the order the figure shows them
 IMPERFECTIONS = ("quantise", "deadband", "backlash", "nonlinearity", "lag")
 #: the corrections (``hardware.compensate.<name>``)
-COMPENSATIONS = ("fit", "backlash", "deadband")
+COMPENSATIONS = ("fit", "backlash", "deadband", "sag", "lead")
 _BASE = "built"  # the as-mounted servos' case name
 
 
