@@ -14,11 +14,15 @@ in edges mode, and the built-in emblem) and prints, for each:
 * ``lines``: for stroked lines, the share of each designed centreline the needle covers
   (the worst line; goal >= 95 %, a line drawn as dashes scores far less);
 * with ``--sim``: the worst marking error and the settled mean on MuJoCo over the whole
-  drawing (``stages/draw.py``; goal < 20 µm and <= 2 µm), and the verdict.
+  drawing (``stages/draw.py``; goal < 20 µm and <= 2 µm), and the verdict;
+* with ``--servo``: the mean and worst marking deviation the servo plant predicts for the
+  arm as built (``backend=servo``, mm), with no correction (``servo_none``), with the
+  defaults (the sag and the lead, ``servo_default``) and with all five
+  (``servo_all``; issue 34's goal: mean <= 1.0 mm, worst <= 2.0 mm).
 
 Usage::
 
-    python benchmarks/bench_artworks.py [--sim] [--only NAME ...] [--keep DIR]
+    python benchmarks/bench_artworks.py [--sim] [--servo] [--only NAME ...] [--keep DIR]
     python benchmarks/run.py artworks        # planning only, as a row per figure
 
 Planning takes seconds per drawing; ``--sim`` simulates each whole drawing (minutes each).
@@ -249,13 +253,43 @@ def sim_figures(art: Art, folder: Path) -> dict[str, float | int | str | None]:
             "verdict": metrics["verdict"], "sim_s": round(time.perf_counter() - t0)}
 
 
+#: the servo program's corrections (``hardware.compensate.<name>``)
+CORRECTIONS = ("fit", "backlash", "deadband", "sag", "lead")
+#: the corrections each ``--servo`` column switches on
+SERVO_SETS = {"servo_none": (), "servo_default": ("sag", "lead"), "servo_all": CORRECTIONS}
+
+
+def servo_figures(art: Art, folder: Path) -> dict[str, float | int | str | None]:
+    """The whole drawing on the servo plant (``stages/draw.py backend=servo``) with each
+    set of corrections: ``mean/worst`` marking deviation, mm."""
+    from tattotronix.art.artwork import resolve_source
+
+    out: dict[str, float | int | str | None] = {}
+    for column, on in SERVO_SETS.items():
+        out_dir = folder / f"servo-{art.name}-{column}"
+        cmd = [sys.executable, str(ROOT / "stages" / "draw.py"), "backend=servo",
+               f"artwork.source={resolve_source(art.source)}", f"artwork.name={art.name}",
+               f"paths.out={out_dir}", "draw.progress=false", *art.overrides,
+               *(f"hardware.compensate.{k}={str(k in on).lower()}" for k in CORRECTIONS)]
+        proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True)
+        if proc.returncode != 0:
+            tail = (proc.stderr or proc.stdout).strip().splitlines()[-1:]
+            out[column] = f"failed: {tail[0] if tail else proc.returncode}"
+            continue
+        m = json.loads(next((out_dir / "metrics" / "runs").glob("*.json")).read_text())
+        out[column] = f"{m['marking_mean_um'] / 1e3:.2f}/{m['marking_max_um'] / 1e3:.2f}"
+    return out
+
+
 COLUMNS = ("entries", "entries_uncomp", "drags", "drags_uncomp", "time_s", "cycle",
-           "bleed_mm", "cover", "missed", "lines_worst", "max_um", "mean_um", "verdict")
+           "bleed_mm", "cover", "missed", "lines_worst", "max_um", "mean_um", "verdict",
+           *SERVO_SETS)
 
 
-def run(names: Sequence[str] = (), sim: bool = False, keep: Path | None = None
-        ) -> list[Result]:
-    """Plan (and with ``sim`` simulate) every drawing, or those in ``names``."""
+def run(names: Sequence[str] = (), sim: bool = False, keep: Path | None = None,
+        servo: bool = False) -> list[Result]:
+    """Plan (and with ``sim`` simulate, with ``servo`` predict on the servo plant) every
+    drawing, or those in ``names``."""
     with tempfile.TemporaryDirectory() as tmp:
         folder = keep or Path(tmp)
         folder.mkdir(parents=True, exist_ok=True)
@@ -268,6 +302,8 @@ def run(names: Sequence[str] = (), sim: bool = False, keep: Path | None = None
                 res.figures.update(plan_figures(art))
                 if sim:
                     res.figures.update(sim_figures(art, folder))
+                if servo:
+                    res.figures.update(servo_figures(art, folder))
             except Exception as exc:  # one drawing's failure is a row, not the end
                 res.error = f"{type(exc).__name__}: {exc}".splitlines()[0][:160]
             print(_line(res), flush=True)
@@ -305,11 +341,13 @@ def bench(repeat: int) -> list[tuple[str, float, str, str]]:
 def main(argv: Sequence[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--sim", action="store_true", help="also simulate each whole drawing")
+    ap.add_argument("--servo", action="store_true",
+                    help="also predict each whole drawing on the servo plant, three ways")
     ap.add_argument("--only", nargs="*", default=(), help="drawing names")
     ap.add_argument("--keep", type=Path, help="keep the generated artworks and runs here")
     args = ap.parse_args(argv)
     os.environ.setdefault("MPLBACKEND", "Agg")
-    results = run(args.only, args.sim, args.keep)
+    results = run(args.only, args.sim, args.keep, args.servo)
     return 1 if any(r.error for r in results) else 0
 
 

@@ -119,16 +119,23 @@ class ServoProgram:
                          for i in range(self.frames)]).reshape(self.q.shape)
 
     def metrics(self, calib: Calibration, chain: Chain) -> JsonDict:
-        """Frames, count steps, quantisation per joint (deg) and the tip error it implies."""
+        """Frames, count steps, quantisation per joint (deg: the counts' angles against
+        the angles meant to be sent, corrections included) and the tip error it implies,
+        and the largest servo correction per joint (deg: the angles sent against the
+        plan's)."""
         steps = np.abs(np.diff(self.counts, axis=0)).max(axis=0) if self.frames > 1 else \
             np.zeros(len(self.channels), dtype=np.int64)
         sent = self.sent_angles(calib)
-        quant = np.abs(sent - self.q)
-        tip, _ = chain.fk(self.q)
+        meant = self.q if self.q_sent is None else self.q_sent
+        quant = np.abs(sent - meant)
+        tip, _ = chain.fk(meant)
         tip_sent, _ = chain.fk(sent)
         dev = np.linalg.norm(tip_sent - tip, axis=1) * 1e3
         names = calib.joint_names
+        correction = np.abs(meant - self.q)
         return {
+            "correction_deg": {n: float(np.degrees(correction[:, i].max()))
+                               for i, n in enumerate(names)},
             "frames": self.frames,
             "frame_hz": self.frame_hz,
             "duration_s": self.frames / self.frame_hz,
