@@ -152,3 +152,28 @@ def test_the_skin_drawing_is_simulated_on_plants_only(across: SkinDrawing,
     with pytest.raises(TattotronixError, match="backend=servo: a drawing on the skin is "
                                                 "simulated on mujoco"):
         simulate_on_surface(cfg, Path("nowhere"), build_description(cfg.robot), across, "e")
+
+
+def test_draw_py_refuses_a_curved_surface_instead_of_drawing_on_the_panel(
+        draw_data: Path) -> None:
+    """``draw.py surface=forearm`` would have drawn on the panel, silently: it is refused
+    in one line that names the stage that draws on the skin, and writes nothing."""
+    out = draw_data.parent / "out"
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "stages" / "draw.py"), "surface=forearm", "art=emblem",
+         f"paths.data={draw_data}", f"paths.out={out}"],
+        cwd=draw_data.parent, env={**os.environ, "MPLBACKEND": "Agg"}, capture_output=True,
+        text=True)
+    assert run.returncode != 0
+    said = (run.stdout + run.stderr).strip().splitlines()
+    assert "surface=forearm: draw.py draws on the panel" in said[-1], said[-3:]
+    assert "stages/surface.py surface=forearm" in said[-1]
+    assert not (out / "metrics").exists()
+
+
+def test_the_api_refuses_a_curved_surface_too() -> None:
+    import tattotronix as tt
+
+    with pytest.raises(TattotronixError, match="surface=forearm: tattotronix.plan draws on "
+                                               "the panel"):
+        tt.draft("emblem", overrides=["surface=forearm"])

@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from tattotronix.app.draw import play
+from tattotronix.app.draw import check_panel, play
 from tattotronix.app.pipeline import (
     DraftedDrawing,
     PlannedDrawing,
@@ -415,6 +415,7 @@ def _settings(source: str | Path, name: str | None, keywords: dict[str, object],
             items.append(f"{_KEYWORDS[key]}={text}")
     items += overrides
     cfg = settings_of(items)
+    check_panel(cfg, "tattotronix.plan")
     if cfg.artwork.name is None:
         named = f"artwork.name={artwork_name(cfg.artwork)}"
         cfg = with_overrides(cfg, [named])

@@ -18,7 +18,7 @@ from tattotronix.app.arm import play_on_arm
 from tattotronix.app.drawings import check_run_source, resolve_drawing, score_and_write
 from tattotronix.app.servos import run_servo_loop
 from tattotronix.app.simulate import run_closed_loop
-from tattotronix.config.schema import Config
+from tattotronix.config.schema import Config, SurfaceKind
 from tattotronix.control.drawing import Drawing
 from tattotronix.errors import TattotronixError
 from tattotronix.hardware.arm import calibration_from_config
@@ -27,7 +27,7 @@ from tattotronix.io.outputs import Outputs
 from tattotronix.plants import BACKENDS as PLANTS
 from tattotronix.robot.description import RobotDescription, build_description
 
-__all__ = ["BACKENDS", "check_backend", "draw", "play"]
+__all__ = ["BACKENDS", "check_backend", "check_panel", "draw", "play"]
 
 log = logging.getLogger("tattotronix.draw")
 
@@ -41,15 +41,32 @@ def draw(cfg: Config, out: Outputs) -> JsonDict:
     (:func:`play`); its summary (the run metrics).
 
     Raises:
-        TattotronixError: an unknown backend, or whatever the backend refuses.
+        TattotronixError: an unknown backend, a curved surface (``stages/surface.py``
+            draws there), or whatever the backend refuses.
     """
     check_backend(cfg)
+    check_panel(cfg, "draw.py")
     desc = build_description(cfg.robot)
     if cfg.backend.name == "arm":  # a bad calibration fails before any planning
         calibration_from_config(cfg.hardware, desc.joint_names)
     else:
         check_run_source(cfg, out)
     return play(cfg, out, desc, resolve_drawing(cfg, out.data, desc))
+
+
+def check_panel(cfg: Config, what: str) -> None:
+    """Refuse a curved surface where only the panel is drawn on (``draw.py``, the Python
+    API's plans), instead of drawing on the panel regardless.
+
+    Raises:
+        TattotronixError: naming the stage that draws on the skin.
+    """
+    if cfg.surface.kind is not SurfaceKind.panel:
+        kind = cfg.surface.kind.value
+        raise TattotronixError(
+            f"surface={kind}: {what} draws on the panel; a drawing on a curved surface is "
+            "planned, simulated (backend=mujoco, pybullet or model) and scored by "
+            f"stages/surface.py surface={kind} ...")
 
 
 def check_backend(cfg: Config) -> None:
