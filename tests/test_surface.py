@@ -257,5 +257,15 @@ def test_a_point_is_located_on_a_scanned_mesh_as_on_the_exact_surface() -> None:
     uv = rng.uniform(-12, 12, (100, 2))
     on = chart.to_surface(uv)
     got_uv, got_h = chart.locate(on.xyz - 1.5 * on.normal, uv + 0.3)
-    assert np.abs(got_uv - uv).max() < 0.05
-    assert np.abs(got_h + 1.5).max() < 0.05
+    assert np.abs(got_uv - uv).max() < 1e-9
+    assert np.abs(got_h + 1.5).max() < 1e-9
+
+
+def test_a_point_that_cannot_be_located_is_named() -> None:
+    """A point 45 mm around the limb from its guess is not carried back in three rounds:
+    refused, naming it, rather than put somewhere wrong."""
+    chart = PHANTOM.chart(110.0, 0.0, 0.0)
+    far = chart.to_surface(np.array([[0.0, 45.0]])).xyz
+    with pytest.raises(TattotronixError, match=r"could not be put back on the design \(the "
+                                                r"carry misses it by [0-9.]+ mm after 3"):
+        chart.locate(far, np.array([[0.0, 0.0]]), rounds=3)

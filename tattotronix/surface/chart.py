@@ -20,7 +20,10 @@ from numpy.typing import NDArray
 
 from tattotronix.errors import TattotronixError
 
-__all__ = ["Chart", "Distortion", "SurfacePoints", "distortion"]
+__all__ = ["LOCATE_TOL_MM", "Chart", "Distortion", "SurfacePoints", "distortion"]
+
+#: how close :meth:`Chart.locate` must carry each point back to itself, mm
+LOCATE_TOL_MM = 1e-6
 
 Array = NDArray[np.float64]
 
@@ -74,8 +77,10 @@ class Chart(ABC):
             (negative: in the skin).
 
         Raises:
-            TattotronixError: a guess per point missing, or a design point the chart does
-                not cover (:meth:`to_surface`'s message).
+            TattotronixError: a guess per point missing, a design point the chart does not
+                cover (:meth:`to_surface`'s message), or a point Newton's method did not
+                carry back to within :data:`LOCATE_TOL_MM` (naming it: too far from the
+                surface, or from its guess).
         """
         p = np.asarray(xyz_mm, dtype=np.float64).reshape(-1, 3)
         uv = np.array(guess_uv_mm, dtype=np.float64).reshape(-1, 2)
@@ -96,6 +101,14 @@ class Chart(ABC):
             height += step[:, 2]
             if float(np.abs(step).max(initial=0.0)) < tol_mm:
                 break
+        on = self.to_surface(uv)
+        miss = np.linalg.norm(on.xyz + height[:, None] * on.normal - p, axis=1)
+        if len(miss) and float(miss.max()) > LOCATE_TOL_MM:
+            i = int(np.argmax(miss))
+            raise TattotronixError(
+                f"the point {p[i].round(3).tolist()} mm could not be put back on the design "
+                f"(the carry misses it by {miss[i]:.3g} mm after {rounds} rounds): it is too "
+                "far from the surface, or from the planned point it was located from")
         return uv, height
 
 
