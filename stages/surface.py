@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike
 from tattotronix.app.onskin import plan_on_surface, simulate_on_surface
 from tattotronix.art.artwork import artwork_name
 from tattotronix.config.schema import Config
+from tattotronix.control.verdict import length_text
 from tattotronix.io.artifacts import PROVENANCE_KEY
 from tattotronix.io.npz import save_npz
 from tattotronix.io.outputs import Outputs
@@ -94,9 +95,13 @@ def main(cfg: Config, out: Outputs) -> None:
              metrics["needle_from_vertical_deg"],
              f"; the phantom {reach_figures['reachable_pct']} % reachable"
              if reach_figures is not None else "")
-    log.info("surface %s on %s: %s; marking max %s um, settled mean %s um; ink %s", name,
-             cfg.backend.name, ran["verdict"], ran["marking_max_um"], ran["settled_mean_um"],
-             run.ink.text())
+    log.info("surface %s on %s: %s; marking max %s, settled mean %s; ink %s", name,
+             cfg.backend.name, ran["verdict"], length_text(_um(ran["marking_max_um"])),
+             length_text(_um(ran["settled_mean_um"])), run.ink.text())
+
+
+def _um(value: object) -> float | None:
+    return float(value) if isinstance(value, int | float) else None
 
 
 if __name__ == "__main__":

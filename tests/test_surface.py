@@ -248,8 +248,8 @@ def test_a_tip_near_the_skin_is_located_in_the_chart(elbow: float, taper: float,
 
 
 def test_a_point_is_located_on_a_scanned_mesh_as_on_the_exact_surface() -> None:
-    """On the phantom as a mesh (its LSCM chart), a point 1.5 mm in the skin is located
-    within the mesh's own error of its design point and depth."""
+    """On the phantom as a mesh (its LSCM chart), a point carried 1.5 mm into the skin is
+    located back at its design point and depth (the mesh's own carry, to rounding)."""
     v, f = phantom_mesh(PHANTOM, jitter=0.0)
     at = PHANTOM.posed(PHANTOM.point(np.array([110.0]), np.array([0.0])))[0]
     chart = MeshChart(v, f, at, radius_mm=30.0)

@@ -228,7 +228,8 @@ class SkinRun:
         errors: the tip's tracking errors.
         grid: the ink raster, over the design plane (the artwork's mm).
         uvz_mm, uvz_ref_mm: (S, 3) every simulated and reference tip in the chart: design
-            point and height over the skin along its normal (negative: in the skin).
+            point and height over the skin along its normal (negative: in the skin); no
+            simulated tip where the ink is not scored.
         sim_ink, plan_ink: the simulated and the planned ink on ``grid``.
         art: the artwork on ``grid``.
         ink: the simulated ink against the planned ink.
@@ -254,8 +255,9 @@ class SkinRun:
         tracking figures and verdict, the ink against the plan and against the artwork,
         and the deepest and shallowest simulated marking depth."""
         figures = self.loop.metrics(self.errors)
-        down = self.errors.down  # at the run's samples
-        depth = -self.uvz_mm[self.loop.samples()][down, 2]
+        # at the run's samples; none where the ink is not scored (the tips not located)
+        depth = (-self.uvz_mm[self.loop.samples()][self.errors.down, 2]
+                 if len(self.uvz_mm) else np.zeros(0))
         figures.update(finite_json({
             **self.ink.metrics(),
             "artwork": None if self.artwork is None else self.artwork.metrics(),
@@ -297,18 +299,19 @@ def simulate_on_surface(cfg: Config, data: Path, desc: RobotDescription, d: Skin
     chain = Chain.from_description(desc)
     run = loop.run
     k = len(run.t)
-    tip = chain.fk(run.q)[0] * 1000.0 if k else np.zeros((0, 3))
-    tip_ref = chain.fk(run.ref.q[:k])[0] * 1000.0 if k else np.zeros((0, 3))
-    err = loop.errors(chain, float(cfg.draw.settle_periods), (tip / 1000.0, tip_ref / 1000.0))
-    uvz = _in_chart(d, tip) if k else np.zeros((0, 3))
-    uvz_ref = _in_chart(d, tip_ref) if k else np.zeros((0, 3))
+    tip_m = chain.fk(run.q)[0] if k else np.zeros((0, 3))
+    ref_m = chain.fk(run.ref.q[:k])[0] if k else np.zeros((0, 3))
+    err = loop.errors(chain, float(cfg.draw.settle_periods), (tip_m, ref_m))
+    reason = loop.judge(err).unscored_ink()
+    # a run that saturated or diverged is not scored, and its tips may be far off the skin
+    uvz = _in_chart(d, tip_m * 1e3) if k and not reason else np.zeros((0, 3))
+    uvz_ref = _in_chart(d, ref_m * 1e3) if k else np.zeros((0, 3))
     res, needle, mask = float(cfg.draw.ink_res_mm), float(cfg.toolpath.needle_width_mm), d.mask
     corners = np.array([[mask.xs[0], mask.ys[0]], [mask.xs[-1], mask.ys[-1]]])
     grid = grid_over([uvz[uvz[:, 2] < 0], uvz_ref[uvz_ref[:, 2] < 0], corners], res)
     sim_ink = rasterise_runs(below_runs(uvz), grid, needle)
     plan_ink = rasterise_runs(below_runs(uvz_ref), grid, needle)
     ink = compare_ink(sim_ink, plan_ink, res)
-    reason = loop.judge(err).unscored_ink()
     if reason:
         ink = ink.unscored(reason)
     art = artwork_on(mask, grid)
