@@ -234,7 +234,7 @@ def test_params_check_says_a_bad_conf_in_one_line(tmp_path: Path,
     text = toolpath.read_text()
     for bad, words in (("wide", ["toolpath.pitch_mm", "'wide'", "Float"]),
                        ("0", ["toolpath.pitch_mm must be >= 0.05", "(got 0)"])):
-        toolpath.write_text(text.replace("pitch_mm: 1.2", f"pitch_mm: {bad}"))
+        toolpath.write_text(text + f"pitch_mm: {bad}\n")
         assert main(["--check", "--root", str(tmp_path)]) == 2
         err = capsys.readouterr().err.strip()
         assert len(err.splitlines()) == 1 and "$VALUE" not in err, err

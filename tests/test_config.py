@@ -9,6 +9,7 @@ import os
 import shlex
 import shutil
 import subprocess
+from enum import Enum
 from pathlib import Path
 
 import pytest
@@ -28,6 +29,7 @@ from tattotronix.report.headline import KEYS as HEADLINE_KEYS
 
 from .conftest import PYTHON, ROOT
 
+MISSING_MARK = object()
 ENV = {k: v for k, v in os.environ.items() if not k.startswith("DVC_")}
 # DVC runs `python stages/...`: make that the interpreter running the tests
 ENV["PATH"] = os.pathsep.join([str(Path(PYTHON).parent), ENV.get("PATH", "")])
@@ -56,6 +58,59 @@ def _project_copy(tmp: Path) -> Path:
 def test_params_yaml_equals_the_composition_of_conf() -> None:
     assert stale_message(ROOT) is None
     assert (ROOT / "params.yaml").read_text() == params_text(compose(conf_dir=ROOT / "conf"))
+
+
+def _leaves(node: object, key: str) -> list[tuple[str, object]]:
+    """Every (dotted key, value) a YAML mapping sets, its defaults list left out."""
+    if not isinstance(node, dict):
+        return [(key, node)]
+    return [leaf for k, v in node.items() if k != "defaults"
+            for leaf in _leaves(v, f"{key}.{k}" if key else str(k))]
+
+
+def _same(written: object, default: object) -> bool:
+    if isinstance(default, Enum):
+        return written == default.name
+    if isinstance(default, float | int) and not isinstance(default, bool):
+        return isinstance(written, float | int) and float(written) == float(default)
+    return written == default
+
+
+def test_no_conf_value_restates_its_default() -> None:
+    """Issue 31: a default is written once, in the schema. A value in conf/ is either one
+    the schema has no default for (the robot, the studies' cases, the calibration) or a
+    choice: one that differs from what the file's own defaults list gives (the schema's
+    default, or for surface=panel, the forearm option it starts from)."""
+    from omegaconf import OmegaConf
+    from omegaconf.errors import MissingMandatoryValue
+
+    from tattotronix.config.schema import SCHEMAS, Config
+
+    restated = []
+    for path in sorted((ROOT / "conf").rglob("*.yaml")):
+        rel = path.relative_to(ROOT / "conf")
+        if rel.parts[0] == "hydra":
+            continue
+        group = "" if len(rel.parts) == 1 else rel.parts[0]
+        written = yaml.safe_load(path.read_text()) or {}
+        base = OmegaConf.structured(SCHEMAS[group] if group else Config)
+        for parent in [d for d in written.get("defaults", []) if isinstance(d, str)
+                       and not d.startswith("_") and "/" not in d]:  # an option it extends
+            base = OmegaConf.merge(base, {k: v for k, v in yaml.safe_load(
+                (path.parent / f"{parent}.yaml").read_text()).items() if k != "defaults"})
+        for key, value in _leaves({k: v for k, v in written.items() if k != "hydra"}, ""):
+            try:  # a key under a MISSING node (the robot, the cases) has no default
+                default = OmegaConf.select(base, key, default=MISSING_MARK,
+                                           throw_on_missing=True)
+            except MissingMandatoryValue:
+                continue
+            if default is MISSING_MARK:
+                continue
+            plain = OmegaConf.to_container(default) if OmegaConf.is_config(default) \
+                else default
+            if _same(value, plain):
+                restated.append(f"{rel}: {key}")
+    assert not restated, restated
 
 
 @pytest.mark.parametrize("overrides", [[], ["robot.mass_model=box", "mask.width_mm=120"]])
@@ -108,7 +163,7 @@ def test_stage_under_dvc_refuses_stale_params(tmp_path: Path) -> None:
     assert run.returncode == 0, run.stderr
     assert (root / "data" / "robot" / "tattotronix.urdf").exists()
     toolpath = root / "conf" / "toolpath" / "default.yaml"
-    toolpath.write_text(toolpath.read_text().replace("pitch_mm: 1.2", "pitch_mm: 0.5"))
+    toolpath.write_text(toolpath.read_text() + "pitch_mm: 0.5\n")
     run = subprocess.run([PYTHON, "stages/robot.py"], cwd=root, env=env,
                          capture_output=True, text=True)
     assert run.returncode == 2
@@ -198,7 +253,7 @@ def test_dvc_repro_on_a_clean_clone(tmp_path: Path) -> None:
     # a new bandwidth in conf/: params.yaml follows, and DVC sees exactly the stages that
     # read it as changed (what the README's experiment below then reruns)
     ctl = clone / "conf" / "controller" / "default.yaml"
-    ctl.write_text(ctl.read_text().replace("wn: 160.0", "wn: 120.0"))
+    ctl.write_text(ctl.read_text() + "wn: 120.0\n")
     assert run(PYTHON, "-m", "tattotronix.config.params").returncode == 0
     status = run(*dvc, "status").stdout
     assert "simulate@emblem" in status and "robot:" not in status, status

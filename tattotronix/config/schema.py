@@ -1,7 +1,10 @@
 """Typed schemas of every Hydra config group (dataclasses registered in the ConfigStore).
 
-The YAML files under ``conf/`` hold values only; these dataclasses hold the keys and their
-types. Every group file names its schema first in its defaults list, so a typo or a bad
+These dataclasses hold every key, its type, its range and its default: a default is written
+here once. The YAML files under ``conf/`` hold only what is not a default (the robot's
+description, the studies' cases, the board's calibration, a surface option's choice) and
+whatever a project sets on purpose; a test refuses a ``conf/`` value equal to its default
+here. Every group file names its schema first in its defaults list, so a typo or a bad
 value stops composition with a message that names the key (and, for enums, the allowed
 values). :func:`register` is called from the Hydra plugin in ``hydra_plugins/`` so that any
 Hydra process (a stage, a test, or DVC's own composition in ``dvc exp run``) sees them.
@@ -480,11 +483,11 @@ class BoxInertial:
 class PenConfig:
     """The placeholder tattoo pen on ``tool0``: a cylinder along tool0 +z (m, kg)."""
 
-    length: float = bounded(0.045, lo=0, lo_open=True, hi=1, unit="m")
-    radius: float = bounded(0.003, lo=0, lo_open=True, hi=0.1, unit="m")
-    mass: float = bounded(0.020, lo=0, lo_open=True, hi=10, unit="kg")
+    length: float = bounded(MISSING, lo=0, lo_open=True, hi=1, unit="m")
+    radius: float = bounded(MISSING, lo=0, lo_open=True, hi=0.1, unit="m")
+    mass: float = bounded(MISSING, lo=0, lo_open=True, hi=10, unit="kg")
     # visual barrel; the rest is the tip cone
-    barrel_length: float = bounded(0.037, lo=0, lo_open=True, hi=1, unit="m")
+    barrel_length: float = bounded(MISSING, lo=0, lo_open=True, hi=1, unit="m")
 
 
 @settings
@@ -557,15 +560,17 @@ class ServoMountConfig:
 
 @settings
 class RobotConfig:
-    """The one robot description: URDF, MJCF and every loader are generated from it."""
+    """The one robot description: URDF, MJCF and every loader are generated from it. The
+    description itself (names, joints, frames, pen, masses, servos) is data, in
+    ``conf/robot/<name>.yaml``; the settings around it have their defaults here."""
 
-    name: str = "tattotronix"
-    base_link: str = "base_link"
+    name: str = MISSING
+    base_link: str = MISSING
     joints: list[JointConfig] = MISSING
     tool0: FrameConfig = MISSING
     tcp: FrameConfig = MISSING
     tool: Tool = Tool.tattoo
-    pen: PenConfig = field(default_factory=PenConfig)
+    pen: PenConfig = MISSING
     mass_model: MassModel = MassModel.printed
     printed: dict[str, InertialConfig] = MISSING
     box: dict[str, BoxInertial] = MISSING
@@ -588,8 +593,8 @@ class RobotConfig:
 class ArtworkConfig:
     """Which artwork to draw. ``source`` null means the built-in emblem."""
 
-    source: str | None = None
-    name: str | None = None  # defaults to the file's stem
+    source: str | None = None  # a PNG, JPG or SVG path; null: the built-in emblem
+    name: str | None = None  # defaults to the file's stem ("emblem" for the built-in)
     # refuse larger images (decompression bombs) and grids
     max_pixels: int = bounded(40_000_000, lo=1, hi=1_000_000_000, unit="px")
     # an SVG may refer to files in its own folder (<image href="photo.png">); false: an SVG
@@ -651,6 +656,8 @@ class ToolpathConfig:
                              why="the point spacing along a stroke")
     clearance_mm: float = bounded(8.0, lo=0, hi=100, unit="mm")
     plunge_mm: float = bounded(1.5, lo=0, hi=20, unit="mm")
+    # the slow last stretch of each plunge (chosen by the approach study, stages/approach.py:
+    # as good at the needle entry as a longer one, for less cycle time)
     approach_mm: float = bounded(2.0, lo=0, hi=120, unit="mm")
     min_loop_px: int = bounded(8, lo=1, hi=1_000_000, unit="px")
     feed_mark_mm_s: float = bounded(6.0, lo=0.01, hi=1000, unit="mm/s")
@@ -723,9 +730,13 @@ class TrajectoryConfig:
 
     # cap on the tip speed of travel moves
     travel_feed_mm_s: float = bounded(200.0, lo=0.1, hi=10_000, unit="mm/s")
-    # per-joint acceleration limit (see conf/trajectory)
+    # per-joint acceleration limit. The original's MoveIt limit was 7.5 (1.5 rad/s reached in
+    # 0.2 s, an arbitrary ramp); 10 costs at most J_eff * a = 0.04 N m of torque (0.2 % of
+    # the 20 N m effort, 4 % of an MG996R) and brings the cycle within 10 % of marking-only
+    # time
     accel_rad_s2: float = bounded(10.0, lo=0.01, hi=10_000, unit="rad/s^2")
-    # every joint's jerk limit (null: acceleration-limited; see docs/timelaw.md)
+    # every joint's jerk limit, chosen from the time-law study (null: acceleration-limited;
+    # see docs/timelaw.md)
     jerk_rad_s3: float | None = bounded(500.0, lo=0, lo_open=True, hi=1e6, unit="rad/s^3")
     # the tip's acceleration limit while marking (tangential and centripetal together)
     tip_accel_mm_s2: float | None = bounded(100.0, lo=0, lo_open=True, hi=1e6,
@@ -735,7 +746,11 @@ class TrajectoryConfig:
     # longer segments (travel, lifts) get points on the tip line
     max_step_mm: float = bounded(0.5, lo=MIN_MAX_STEP_MM, hi=100, unit="mm",
                                  why="the longest chord kept as is")
-    travel: str = "planned"  # planned: joint-space moves between strokes; straight: tip lines
+    # travel between strokes, from home to the first stroke and the way home. planned: one
+    # blended joint-space move from the ink up the needle, over at the clearance height and
+    # down the needle (checked for collision and clearance); straight: the original's
+    # straight tip lines at clearance
+    travel: str = "planned"
     home: list[float] = bounded(factory=lambda: [0.0, 0.0, 0.0, 0.0, 0.0], lo=-TURN,
                                 hi=TURN, unit="rad")
     from_home: bool = True  # planned travel: start at home and return home
@@ -772,7 +787,8 @@ class TrajectoryConfig:
 class CollisionConfig:
     """Collision checking (``stages/collision.py``) and the planned travel's margin."""
 
-    # least clearance a trajectory and a planned move must keep
+    # least clearance every trajectory sample, the motion between samples and every planned
+    # travel move must keep
     margin_mm: float = bounded(1.0, lo=0, hi=100, unit="mm")
     # bisect the motion between samples down to this bound
     resolution_mm: float = bounded(0.1, lo=MIN_COLLISION_RES_MM, hi=100, unit="mm",
@@ -820,12 +836,15 @@ class ControllerConfig:
     docs/original.md, "5.2 Controller structure" and "5.3 Tuning by pole placement").
 
     PID by pole placement on the effective inertia J_eff at ``tune_q`` (all three poles
-    at -wn): Kp = 3 J wn^2, Kd = 3 J wn, Ki = J wn^3.
+    at -wn): Kp = 3 J wn^2, Kd = 3 J wn, Ki = J wn^3. The defaults are the original's
+    recommended configuration.
     """
 
     structure: Structure = Structure.pid_g_v
-    wn: float = bounded(160.0, lo=0.1, hi=10_000, unit="rad/s")  # one for every joint
-    # the loop runs at this rate, zero-order hold between ticks
+    # one for every joint; wn T = 0.16 at 1 kHz, inside the sampled boundary 0.30-0.35
+    wn: float = bounded(160.0, lo=0.1, hi=10_000, unit="rad/s")
+    # the loop runs at this rate, zero-order hold between ticks (the original's
+    # ros2_control update_rate)
     rate_hz: float = bounded(1000.0, lo=1, hi=10_000, unit="Hz")
     # null: each joint's effort limit (20 N m)
     torque_limit_nm: float | None = bounded(None, lo=0, lo_open=True, hi=1e4, unit="N m")
@@ -837,12 +856,15 @@ class ControllerConfig:
 class PlantConfig:
     """The simulated arm, whichever backend runs it."""
 
-    # integration step (semi-implicit Euler in every backend)
+    # integration step (semi-implicit Euler in every backend; 1 kHz as the original)
     dt_s: float = bounded(0.001, lo=MIN_DT_S, hi=0.1, unit="s")
     # viscous joint friction, N m s/rad (none unless configured)
     damping: float = bounded(0.0, lo=0, hi=1000, unit="N m s/rad")
-    joint_limits: bool = False  # enforce the joint range (the model plant clamps)
-    contacts: bool = False  # arm-bench contact (MuJoCo, PyBullet); the panel never resists
+    # enforce the joint range (the model plant clamps); a correct drawing never reaches it
+    joint_limits: bool = False
+    # arm-bench contact (MuJoCo, PyBullet); the panel never resists, and the collision stage
+    # checks the plan instead
+    contacts: bool = False
     # a joint this far from its reference: the run diverged
     abort_error_rad: float = bounded(1.0, lo=0, lo_open=True, hi=TURN, unit="rad")
 
@@ -850,8 +872,10 @@ class PlantConfig:
 @settings
 class ServoPlantConfig:
     """The servo plant (``backend=servo``; docs/servos.md): the arm on hobby servos playing
-    the servo program. Each imperfection can be switched off; with all off and
-    ``quantise=false`` it is an ideal position servo following the program's angles."""
+    the servo program. The servos' figures are ``robot.servos`` (their sources in
+    docs/servos.md); these switch each imperfection and set the simulated calibration. Each
+    imperfection can be switched off; with all off and ``quantise=false`` it is an ideal
+    position servo following the program's angles."""
 
     # the servo type on every joint (a robot.servos name); null: as mounted (servo_mounts)
     type: str | None = None
@@ -933,6 +957,7 @@ class KinematicsStudyConfig:
     """The kinematics study (docs/kinematics.md; docs/original.md, "3.4 Conditioning,
     reachability, placement"). Placements pair widths[i] with offsets[i]."""
 
+    # the reachability grid over the panel (the original's: 33 x 23)
     reach_nx: int = bounded(33, lo=2, hi=200)
     reach_ny: int = bounded(23, lo=2, hi=200)
     placement_widths_mm: list[float] = bounded(
@@ -1050,14 +1075,18 @@ class StudyConfig:
     named cases (``control``); ``python stages/<study>.py -m key=a,b,c`` runs any other.
     """
 
-    window_s: float = bounded(12.0, lo=0, lo_open=True, hi=1e5, unit="s")  # busiest window
+    # the busiest window (the original reported on the busiest 12 s of a drawing)
+    window_s: float = bounded(12.0, lo=0, lo_open=True, hi=1e5, unit="s")
     # run every configured case of the study, concurrently (the DVC stage); false: the one
     # case the settings describe (a hand run)
     all_cases: bool = False
     kinematics: KinematicsStudyConfig = field(default_factory=KinematicsStudyConfig)
     control: ControlStudyConfig = field(default_factory=ControlStudyConfig)
     # the same ranges as toolpath.approach_mm, toolpath.step_mm, controller.rate_hz,
-    # controller.wn and plant.dt_s, whose values they sweep
+    # controller.wn and plant.dt_s, whose values they sweep: stages/approach.py, the slow
+    # last stretch of every plunge (docs/original.md, "5.7 The approach study");
+    # stages/resample.py, the point step ("2.11 The resample study"); stages/rate.py, loop
+    # rate x bandwidth with the plant at 4 kHz ("5.8 The rate study")
     approach_mm: list[float] = bounded(factory=lambda: [0.0, 0.5, 1.0, 2.0, 4.0], lo=0,
                                        hi=120, unit="mm")
     step_mm: list[float] = bounded(factory=lambda: [0.6, 0.3, 0.15], lo=MIN_STEP_MM,

@@ -138,7 +138,8 @@ def ik_options(ik: IkConfig) -> IkOptions:
             "max_iter": int(ik.max_iter), "tol": float(ik.tol),
             "anchor_spacing_m": float(ik.anchor_spacing_m)}
 
-_DEFAULTS = IkConfig()  # conf/ik: the original's settings (docs/original.md, "3.2 The solver")
+# the schema's defaults: the original's settings (docs/original.md, "3.2 The solver")
+_DEFAULTS = IkConfig()
 DLS_LAMBDA = _DEFAULTS.dls_lambda
 MAX_ITER = _DEFAULTS.max_iter
 TOL = _DEFAULTS.tol

@@ -6,7 +6,7 @@ Cases: ``study.timelaw_tip_mm_s2`` x ``study.timelaw_jerk_rad_s3``; a case sets
 ``tip100-jerk500``, re-times the drawing from its IK path with those limits and runs it
 closed loop (the default controller: MuJoCo, pid_g_v at wn 160 and 1 kHz) over the whole
 drawing. Stage ``timelaw`` (``stages/timelaw.py``); the machinery is
-:class:`tattotronix.studies.base.ClosedLoopStudy`. The defaults in ``conf/trajectory``
+:class:`tattotronix.studies.base.ClosedLoopStudy`. The defaults of ``TrajectoryConfig``
 are the fastest case that meets the accuracy goals (:func:`meets_goals`).
 """
 
