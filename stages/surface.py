@@ -11,8 +11,9 @@ tracking and the ink in the skin against the plan and the artwork, in the design
 the normal (tattotronix/kinematics/onsurface.py). Writes ``data/surface/<name>.npz`` (the
 surface's mesh, the skin path, the joint angles, the reachability map),
 ``data/metrics/surface/<name>.json`` (its ``run`` section: the simulation) and
-``data/figures/surface/<name>.png`` and ``<name>-ink.png`` (the simulated ink against the
-artwork).
+``data/figures/surface/<name>.png``, ``<name>-ink.png`` (the simulated ink against the
+artwork, in the design's chart) and ``<name>-limb.png`` (that ink carried onto the limb, in
+3-D).
 """
 
 from __future__ import annotations
@@ -37,7 +38,7 @@ from tattotronix.kinematics import Chain
 from tattotronix.kinematics.ik import ik_options
 from tattotronix.kinematics.onsurface import cone_reach
 from tattotronix.path.inkfigure import artwork_ink_figure
-from tattotronix.report.surface import surface_figure
+from tattotronix.report.surface import limb_ink_figure, surface_figure
 from tattotronix.robot.description import build_description
 from tattotronix.stage import run_stage
 
@@ -87,6 +88,10 @@ def main(cfg: Config, out: Outputs) -> None:
         f"skin, in the design's chart, against the artwork (needle "
         f"{float(cfg.toolpath.needle_width_mm):g} mm)",
         run.artwork if run.artwork is not None else f"ink {run.reason}")
+    limb_ink_figure(
+        d, run, out.tmp_path(out.path("figures", "surface", f"{name}-limb.png")),
+        f"{name} on the {d.surface.kind} ({cfg.backend.name}): the simulated ink on the "
+        f"limb ({run.ink.text()})")
     dist = d.distortion
     log.info("surface %s: %d points, distortion area %.4f %% angle %.4f %%, IK %s %%, "
              "tilt worst %.2e deg, needle %s deg from vertical%s", name,

@@ -145,7 +145,7 @@ def test_bad_key_or_value_names_the_key(override: str, words: list[str]) -> None
 def test_stale_params_are_detected_and_recomposed(tmp_path: Path) -> None:
     root = _project_copy(tmp_path)
     robot = root / "conf" / "robot" / "tattotronix.yaml"
-    robot.write_text(robot.read_text().replace("mass_model: printed", "mass_model: box"))
+    robot.write_text(robot.read_text() + "mass_model: box\n")
     msg = stale_message(root)
     assert msg and "robot.mass_model" in msg and "'printed'" in msg and "'box'" in msg
     assert "tattotronix-params" in msg

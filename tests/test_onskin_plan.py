@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from PIL import Image
 
 from tattotronix.app.onskin import SkinDrawing, plan_on_surface, simulate_on_surface
 from tattotronix.config.params import compose_settings
@@ -34,7 +35,7 @@ from tests.test_surface import PHANTOM, _stl, phantom_mesh
 
 ROOT = Path(__file__).resolve().parents[1]
 #: the built-in drawing on the phantom (dvc.yaml, ``surfaces``): the emblem 60 mm wide
-#: around the limb (conf/surface/forearm.yaml's placement)
+#: around the limb (surface=forearm's default placement)
 ACROSS = ["surface=forearm", "mask.width_mm=60"]
 
 
@@ -137,6 +138,9 @@ def test_the_stage_writes_its_outputs(tmp_path: Path, draw_data: Path) -> None:
     assert sim["depth_mm"]["min"] > 1.45 and sim["depth_mm"]["max"] < 1.55, sim
     assert sim["artwork"]["coverage"] > 0.7 and sim["artwork"]["bleed_max_mm"] <= 0.1 + 1e-9
     assert (tmp_path / "figures" / "surface" / "emblem-forearm-ink.png").stat().st_size > 10_000
+    # the same ink carried onto the limb, in 3-D, two views
+    with Image.open(tmp_path / "figures" / "surface" / "emblem-forearm-limb.png") as im:
+        assert im.size[0] > 1000
     assert metrics["ik_converged_pct"] == 100.0
     assert metrics["needle_from_vertical_deg"]["max"] >= 40.0
     assert metrics["reach"]["points"] == 32

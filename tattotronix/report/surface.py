@@ -6,13 +6,19 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
-from tattotronix.app.onskin import SkinDrawing
+from tattotronix.app.onskin import SkinDrawing, SkinRun
 from tattotronix.kinematics.onsurface import SurfaceReach
 from tattotronix.path.kinds import MARK
 from tattotronix.plotting import pyplot
 
-__all__ = ["surface_figure"]
+__all__ = ["limb_ink_figure", "surface_figure"]
+
+#: the ink drawn on the limb: one dot per pixel of this pitch (or the raster's, if coarser)
+LIMB_INK_PITCH_MM = 0.15
+#: the patch of skin shown around the design, mm past its ink
+LIMB_MARGIN_MM = 15.0
 
 
 def surface_figure(d: SkinDrawing, reach: SurfaceReach | None, path: Path, title: str) -> None:
@@ -85,6 +91,75 @@ def surface_figure(d: SkinDrawing, reach: SurfaceReach | None, path: Path, title
                   f"tilt error {float(d.tilt_deg.max()):.1e} deg,\nneedle "
                   f"{float(mark_vertical.min()):.0f} to {float(mark_vertical.max()):.0f} deg "
                   "from vertical (ticks: 12 mm of needle)", fontsize=10)
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110, metadata={"Software": None})
+    plt.close(fig)
+
+
+def _view(direction: NDArray[np.float64]) -> tuple[float, float]:
+    """Matplotlib's (elevation, azimuth), degrees, of a view looking back along
+    ``direction`` (from its tip towards the origin)."""
+    x, y, z = (float(c) for c in direction / np.linalg.norm(direction))
+    return float(np.degrees(np.arcsin(np.clip(z, -1.0, 1.0)))), float(np.degrees(
+        np.arctan2(y, x)))
+
+
+def limb_ink_figure(d: SkinDrawing, run: SkinRun, path: Path, title: str) -> None:
+    """The simulated ink on the limb in 3-D: every inked pixel of the run's raster (in the
+    design's chart) carried onto the skin by the chart, over the patch of skin around it.
+    Left: seen along the skin's normal at the design's centre (the design as it reads on
+    the skin); right: seen from the side across the limb (how it wraps around it)."""
+    plt = pyplot()
+    grid = run.grid
+    step = max(1, int(round(LIMB_INK_PITCH_MM / grid.res_mm)))
+    rows, cols = np.nonzero(run.sim_ink[::step, ::step])
+    uv = np.column_stack([grid.u0_mm + cols * step * grid.res_mm,
+                          grid.v0_mm - rows * step * grid.res_mm]) - np.asarray(d.centre_mm)
+    ink = d.chart.to_surface(uv) if len(uv) else None
+    centre = d.chart.to_surface(np.zeros((1, 2)))
+    v, f = d.surface.vertices, d.surface.faces
+    if ink is not None:
+        lo, hi = ink.xyz.min(axis=0) - LIMB_MARGIN_MM, ink.xyz.max(axis=0) + LIMB_MARGIN_MM
+    else:
+        lo = centre.xyz[0] - 2 * LIMB_MARGIN_MM
+        hi = centre.xyz[0] + 2 * LIMB_MARGIN_MM
+    mid = v[f].mean(axis=1)
+    near = np.all((mid >= lo) & (mid <= hi), axis=1)
+    fig = plt.figure(figsize=(12.0, 5.6))
+    normal = centre.normal[0]
+    # the limb's axis: the mesh's longest principal direction; looking along it (and a
+    # little down the normal) shows the design's curve around the limb
+    spread = v - v.mean(axis=0)
+    axis = np.linalg.svd(spread, full_matrices=False)[2][0]
+    axis = axis - (axis @ normal) * normal
+    axis = axis / np.linalg.norm(axis) if np.linalg.norm(axis) > 1e-9 else np.array(
+        [1.0, 0.0, 0.0])
+    for i, (look, what) in enumerate(((normal, "along the skin's normal at its centre"),
+                                      (axis + 0.6 * normal, "along the limb"))):
+        ax = fig.add_subplot(1, 2, i + 1, projection="3d")
+        if near.any():
+            ax.plot_trisurf(v[:, 0], v[:, 1], v[:, 2], triangles=f[near], color="peachpuff",
+                            alpha=0.55, linewidth=0.0, shade=True)
+        if ink is not None:
+            dots = ink.xyz + 0.05 * ink.normal  # on the skin, not inside its shading
+            ax.scatter(dots[:, 0], dots[:, 1], dots[:, 2], s=0.4, c="#1b1f3b", marker=".",
+                       linewidths=0.0, depthshade=False)
+        span = hi - lo
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
+        ax.set_zlim(lo[2], hi[2])
+        ax.set_box_aspect(tuple(float(x) for x in span))  # true proportions
+        ax.locator_params(nbins=4)
+        ax.set_xlabel("x, mm")
+        ax.set_ylabel("y, mm")
+        ax.set_zlabel("z, mm")
+        elev, azim = _view(look)
+        ax.view_init(elev=elev, azim=azim)
+        if i == 0:  # the depth axis, seen end on
+            ax.set_zticks([])
+            ax.set_zlabel("")
+        ax.set_title(f"seen {what}", fontsize=10)
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=110, metadata={"Software": None})
