@@ -405,3 +405,27 @@ def test_independent_points_each_from_its_own_seed(chain: Chain) -> None:
     assert np.abs(got_tip - tip).max() < 1e-5 and np.abs(got_axis - axis).max() < 1e-5
     with pytest.raises(TattotronixError, match=r"IK seeds must be \(40, 5\)"):
         solve_points(chain, tip, q_true[:3], needle_axis=axis)
+
+
+def test_a_path_starting_far_from_the_seed_is_solved_backwards_from_its_first_solution(
+        chain: Chain) -> None:
+    """The first point of a drawing on a limb: the needle 31 deg from vertical along the
+    skin's normal, where a solve from the default seed fails although the arm reaches it.
+    Every later point has a neighbour to start from; the first is solved again from the
+    point after it (five generated artworks on the forearm phantom were refused for this
+    one point alone)."""
+    from tattotronix.kinematics.ik import SEED, solve_points
+
+    a, za = np.array([0.210142, 0.023865, 0.055246]), np.array([-0.046776, -0.515982,
+                                                                 -0.855322])
+    b = np.array([0.21, 0.0, 0.03])
+    w = np.linspace(0.0, 1.0, 60)[:, None]
+    x = (1 - w) * a + w * b
+    z = (1 - w) * za + w * DOWN
+    z /= np.linalg.norm(z, axis=1, keepdims=True)
+    _, from_seed = solve_points(chain, x[:1], np.array([SEED]), needle_axis=z[:1])
+    assert not from_seed[0]  # the situation: the seed alone does not get there
+    res = solve_path(chain, x, needle_axis=z)
+    assert res.ok and res.stats["head_resolved"] == 1, res.stats
+    tip, axis = chain.fk(res.q)
+    assert np.abs(tip - x).max() < 1e-5 and np.abs(axis - z).max() < 1e-5

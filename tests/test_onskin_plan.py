@@ -181,3 +181,26 @@ def test_the_api_refuses_a_curved_surface_too() -> None:
     with pytest.raises(TattotronixError, match="surface=forearm: tattotronix.plan draws on "
                                                "the panel"):
         tt.draft("emblem", overrides=["surface=forearm"])
+
+
+def test_the_skin_has_its_own_tip_acceleration_limit(across: SkinDrawing) -> None:
+    """surface.tip_accel_mm_s2 (50) times the marking on the skin, not the panel's
+    trajectory.tip_accel_mm_s2 (100): the tip accelerates at most that much along the
+    marked path, and the panel's limit no longer applies to the skin."""
+    from tattotronix.kinematics import Chain
+
+    cfg = compose_settings(ACROSS)
+    assert cfg.surface.tip_accel_mm_s2 < cfg.trajectory.tip_accel_mm_s2
+    traj = across.trajectory
+    t, kind = np.asarray(traj.t), np.asarray(traj.kind)
+    tip = Chain.from_description(build_description(cfg.robot)).fk(np.asarray(traj.q))[0]
+    # the tip's acceleration from its path and the law (|p'' sdot^2 + p' sddot|), on
+    # marking intervals away from the rests, where finite differences are steady
+    v = np.gradient(tip, t, axis=0)
+    a = np.linalg.norm(np.gradient(v, t, axis=0), axis=1) * 1000  # mm/s^2
+    inner = (kind == MARK) & np.r_[False, kind[:-2] == MARK, False] & np.r_[
+        False, kind[2:] == MARK, False]
+    assert float(np.percentile(a[inner], 99)) <= 1.05 * cfg.surface.tip_accel_mm_s2
+    # the same drawing at the panel's limit is faster, and faster only by the marking
+    fast = _plan([*ACROSS, "surface.tip_accel_mm_s2=100"])
+    assert fast.trajectory.t[-1] < traj.t[-1]

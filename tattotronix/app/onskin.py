@@ -9,7 +9,8 @@ over the design's footprint and refuses it past ``surface.max_distortion_pct``, 
 the path onto the surface (:func:`~tattotronix.path.onskin.carry_path`: heights along the
 normal, equal arc length, no chord straying 0.01 mm) and solves the IK with each point's
 needle axis. A point the arm cannot reach refuses the placement, naming the part of the
-design it is in. The joint path is then timed by the panel's time law (its travel the
+design it is in. The joint path is then timed by the panel's time law (the tip's acceleration
+while marking limited by ``surface.tip_accel_mm_s2``, its travel the
 carried one: lifted along the normal, at the clearance from the skin, and no step longer
 than the densify step, so none is split with one needle axis) and checked for collisions
 with the limb in the panel's place, every link and the pen's barrel at the margin.
@@ -160,7 +161,8 @@ def _unreached(uv: Array, failed: NDArray[np.bool_], box: tuple[float, float, fl
     bad = uv[failed]
     lo, hi = bad.min(axis=0), bad.max(axis=0)
     share = 100.0 * float(failed.mean())
-    return (f"{share:.1f} % of its points, within design u {lo[0]:.1f}..{hi[0]:.1f} mm and "
+    return (f"{int(failed.sum())} of its {len(failed)} points ({share:.2g} %), within "
+            f"design u {lo[0]:.1f}..{hi[0]:.1f} mm and "
             f"v {lo[1]:.1f}..{hi[1]:.1f} mm (the design spans u {u0:.1f}..{u1:.1f}, "
             f"v {v0:.1f}..{v1:.1f})")
 
@@ -186,7 +188,7 @@ def plan_on_surface(cfg: Config, source: str | Path | None, name: str,
     dist = distortion(chart, box, DISTORTION_STEP_MM)
     dist.check(float(cfg.surface.max_distortion_pct) / 100.0)
     timing = replace(TrajectoryParams.from_settings(cfg.trajectory, cfg.toolpath, cfg.speed),
-                     travel="straight")
+                     travel="straight", tip_accel_m_s2=cfg.surface.tip_accel_m_s2)
     skin = carry_path(design, kind, chart, max_step_mm=STEP_SHARE * 1000 * timing.max_step_m)
     chain = Chain.from_description(desc)
     opts: IkOptions = {**ik_options(cfg.ik), "needle_axis": skin.axis}

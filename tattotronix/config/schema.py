@@ -1151,11 +1151,22 @@ class SurfaceConfig:
     turn_deg: float = bounded(90.0, lo=-360, hi=360, unit="deg")
     # the most the map from the design to the skin may distort it (area or angle)
     max_distortion_pct: float = bounded(0.5, lo=0, hi=100, unit="%")
+    # the tip's acceleration limit while marking on the skin (on the panel:
+    # trajectory.tip_accel_mm_s2). The wrist turns the needle with the normal as it marks,
+    # so every joint accelerates more per mm/s^2 of the tip than on the panel, and the
+    # loop's error grows with it: chosen from a sweep on the built-in drawing around the
+    # phantom (docs/surface.md, "The drawing simulated on the skin")
+    tip_accel_mm_s2: float = bounded(50.0, lo=0, lo_open=True, hi=1e6, unit="mm/s^2")
     # the reachability map over the phantom: sections along it, points around each, and
     # the ends left out
     reach_along: int = bounded(23, lo=2, hi=500, why="sections of the reachability map")
     reach_around: int = bounded(36, lo=4, hi=720, why="points around each section")
     reach_margin_mm: float = bounded(10.0, lo=0, hi=500, unit="mm")
+
+    @property
+    def tip_accel_m_s2(self) -> float:
+        """The tip's acceleration limit while marking on the skin, m/s^2."""
+        return float(self.tip_accel_mm_s2) / 1000
 
 
 @settings

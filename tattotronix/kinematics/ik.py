@@ -35,6 +35,9 @@ warm start still follows the path order, as a sequential solve does:
 4. A point whose solution is not on its predecessor's branch (a joint step above
    ``branch_tol_rad``, more for long steps), or that failed, is solved again
    warm-started from its predecessor, in batched rounds, until nothing changes.
+5. Where the first points failed from the seed (a path that starts far from it: a needle
+   tilted along a limb's normal), they are solved again backwards, each from the point
+   after it, from the first one that converged.
 
 So every accepted point is a converged solution of the same iteration, on the branch a
 warm-started path solve follows; seeded with the same ``q``, the batched iteration
@@ -645,6 +648,10 @@ def solve_path(
         ps.solve_between(anchors, s, qa, ca, progress)
         # 4. off-branch or failed points again, from their predecessors, until settled
         rounds_f, resolved = ps.settle_branches(s, branch_tol_rad, anchor_spacing_m, same_tol)
+        # 5. a failed start of the path, backwards from its first solved point
+        head = ps.settle_head()
+        if head:
+            stats["head_resolved"] = head
         stats.update(fix_rounds=rounds_f, resolved=resolved, point_iterations=ps.work)
         if progress is not None:
             progress(n_pts, n_pts)
@@ -798,6 +805,25 @@ class _PathSolve:
         todo = cand[off_branch(cand)]
         return _settle(self.solve, q, conv, self.res, self.iters, self.at_limit, todo,
                        lambda j: off_branch(j, recheck_far=True), same_tol)
+
+    def settle_head(self) -> int:
+        """The points before the first converged one solved again, backwards, each from the
+        one after it; the number solved.
+
+        The first point starts from the seed alone, and every later one from a neighbour:
+        where the path begins far from the seed (a needle tilted along a limb's normal) the
+        seed's solve can fail although the arm reaches the point, and no predecessor is
+        there to retry it from (:meth:`settle_branches` starts at the second point)."""
+        if not len(self.conv) or self.conv[0] or not self.conv.any():
+            return 0
+        first = int(np.argmax(self.conv))
+        for j in range(first - 1, -1, -1):
+            idx = np.array([j], dtype=np.intp)
+            b = self.solve(idx, self.q[:, j + 1:j + 2].copy())
+            if not b.converged[0]:
+                return first - 1 - j
+            self._store(idx, b.q, b.converged, b.residual, b.iterations, b.at_limit)
+        return first
 
     def result(self, stats: dict[str, Any], solve_s: float) -> IkResult:
         """The solutions, each failure named (``joint limit`` or ``unreachable``)."""

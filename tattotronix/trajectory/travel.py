@@ -55,6 +55,12 @@ _LOWEST_TOL_M = 1e-9  # "never lowers the pen": monotone to rounding
 _MIN_SAMPLES = 8
 _BLEND_PROBE = 2001  # curve points the arc length of a blend is measured on
 _BLEND_STEP_SHARE = 0.9  # blend samples sit this share of max_step_m apart (at most)
+#: a move's collision check starts from every 4th sample (and its last): the check bisects
+#: the motion between them down to ``collision.resolution_mm`` wherever its bound does
+#: not prove the margin, so the poses between are covered as densely as they need (the
+#: same verdicts on the benchmark's ten artworks, the logo's plan 0.85x the time; the
+#: collision stage then checks the whole trajectory at every sample)
+_CHECK_EVERY = 4
 _SAME_POSE_RAD = 1e-12  # poses closer than this (every joint) are the same pose
 
 
@@ -247,7 +253,9 @@ class TravelPlanner:
         if self.collision is not None:
             from tattotronix.collision.check import check_trajectory
 
-            rep = check_trajectory(self.collision, t, q, margin_m=self.margin_m,
+            keep = (np.unique(np.r_[np.arange(0, len(q), _CHECK_EVERY), len(q) - 1])
+                    if len(q) > 2 * _CHECK_EVERY else slice(None))
+            rep = check_trajectory(self.collision, t[keep], q[keep], margin_m=self.margin_m,
                                    plunge_m=math.inf, resolution_m=self.resolution_m)
             if rep.events:
                 return rep.message()
