@@ -507,3 +507,29 @@ def test_the_tip_comes_to_rest_where_it_turns_back_while_marking(
     tip_speed = np.linalg.norm(np.gradient(traj.tcp, traj.t, axis=0), axis=1)
     at = int(np.argmin(np.linalg.norm(traj.tcp - path.tcp[turn], axis=1)))
     assert tip_speed[at] < 0.02 * params.feed_mark_m_s
+
+
+@settings(max_examples=60, deadline=None)
+@given(halves=st.integers(1, 12), amp=st.floats(2e-4, 1.0), wobble=st.floats(0.0, 4.9e-5),
+       n=st.integers(200, 600))
+def test_marking_reversals_counts_each_turn_back_once(halves: int, amp: float, wobble: float,
+                                                      n: int) -> None:
+    """A joint swinging through ``halves`` half-periods while marking turns back
+    ``halves - 1`` times; a wobble under the hysteresis adds none; a still joint none; and
+    a turn across travel (the needle out) is not a reversal while marking."""
+    from tattotronix.trajectory.path import REVERSAL_MIN_RAD, marking_reversals
+
+    u = np.linspace(0.0, 1.0, n)
+    swing = amp * (1 - np.cos(math.pi * halves * u)) / 2  # rests at both ends
+    jitter = wobble * np.sin(2 * math.pi * 97 * u)
+    q = np.column_stack([swing, 0.3 + jitter, np.full(n, -0.2), u, swing + jitter])
+    kind = np.ones(n, np.int8)
+    got = marking_reversals(q, kind)
+    assert got[0] == halves - 1 and got[1] == 0 and got[2] == 0 and got[3] == 0
+    assert got[4] == halves - 1  # the wobble rides on the swing without a turn of its own
+    assert 2 * wobble < REVERSAL_MIN_RAD  # its back-moves are under the hysteresis
+    # the same path with the needle out over every turn: nothing reverses while marking
+    turns = np.round(np.arange(1, halves) * (n - 1) / halves).astype(int)
+    out = kind.copy()
+    out[turns] = 0
+    assert marking_reversals(q, out)[0] == 0

@@ -46,6 +46,7 @@ __all__ = [
     "corner_points",
     "cusp_points",
     "densify",
+    "marking_reversals",
     "path_derivatives",
     "segment_kinds",
     "spaced",
@@ -177,6 +178,49 @@ def segment_kinds(kind: NDArray[np.int8]) -> NDArray[np.int8]:
     seg[(k[:-1] == MARK) & (k[1:] == MARK)] = MARK
     seg[(k[:-1] == APPROACH) | (k[1:] == APPROACH)] = APPROACH
     return seg
+
+
+#: a joint has reversed while marking once it has moved back by more than this from the
+#: furthest it went (rad; 0.006 deg: under any servo's play or dead band, above the IK's
+#: rounding, so a still joint's jitter is not counted)
+REVERSAL_MIN_RAD = 1e-4
+
+
+def marking_reversals(q: ArrayLike, kind: ArrayLike,
+                      min_rad: float = REVERSAL_MIN_RAD) -> NDArray[np.int64]:
+    """(n,) how often each joint turns back while the needle marks (issue 34: backlash
+    bites there, where no lift lets the gears settle).
+
+    Each stretch of marking segments is followed on its own: a joint's direction is set
+    by its first move of more than ``min_rad``, and a reversal counted each time it then
+    moves back by more than ``min_rad`` from the furthest point it reached.
+
+    Args:
+        q: (N, n) joint angles of the path's points, rad.
+        kind: (N,) point kinds (0 travel, 1 mark, 2 approach).
+        min_rad: the hysteresis, rad.
+    """
+    qa = np.asarray(q, dtype=np.float64)
+    seg = segment_kinds(np.asarray(kind)) == MARK
+    counts = np.zeros(qa.shape[1], np.int64)
+    edges = np.flatnonzero(np.diff(np.r_[0, seg.astype(np.int8), 0]))
+    for lo, hi in zip(edges[::2], edges[1::2], strict=True):  # segments lo..hi-1
+        run = qa[lo:hi + 1]
+        for j in range(qa.shape[1]):
+            x = run[:, j]
+            if np.ptp(x) <= min_rad:
+                continue
+            direction, extreme = 0, float(x[0])
+            for v in x[1:].tolist():
+                if direction == 0:
+                    if abs(v - extreme) > min_rad:
+                        direction, extreme = (1 if v > extreme else -1), v
+                elif direction * (v - extreme) > 0:
+                    extreme = v  # further the same way
+                elif direction * (extreme - v) > min_rad:
+                    counts[j] += 1
+                    direction, extreme = -direction, v
+    return counts
 
 
 def densify(path: JointPath, chain: Chain, max_step_m: float,

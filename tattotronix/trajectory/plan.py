@@ -55,6 +55,7 @@ from tattotronix.trajectory.path import (
     corner_points,
     cusp_points,
     densify,
+    marking_reversals,
     path_derivatives,
     segment_kinds,
     spaced,
@@ -459,6 +460,9 @@ class Trajectory(TrajectoryRecord):
             "tip_accel_limit_mm_s2": None if self.params.tip_accel_m_s2 is None
             else self.params.tip_accel_m_s2 * 1000.0,
             "peak_tip_accel_marking_mm_s2": self.peak_tip_accel_marking() * 1000.0,
+            # joint reversals while the needle is in (issue 34: where backlash bites)
+            "marking_reversals": {j: int(c) for j, c in zip(
+                names, marking_reversals(self.q, self.kind), strict=True)},
             **self.speed.summary(),
             **self.travel_metrics(),
         }
