@@ -52,8 +52,8 @@ ALLOWED_LINK_PAIRS = {
 GRAZE_ARM = (0.91, 0.29, 0.97, -0.91)
 GRAZE_Q5 = (-1.5, 0.9)
 PEN_BENCH = "tattoo_pen_link|bench"
-MARGIN_M = 1e-3  # conf/collision: margin_mm
-PLUNGE_M = 1.5e-3  # conf/toolpath: plunge_mm
+MARGIN_M = 1e-3  # collision.margin_mm (CollisionConfig)
+PLUNGE_M = 1.5e-3  # toolpath.plunge_mm (ToolpathConfig)
 # coal's GJK stops at 1e-6 m and warm-starts from the last query, so one pose's clearance
 # can differ by about a micrometre between calls
 GJK_M = 2e-6
