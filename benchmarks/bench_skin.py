@@ -24,7 +24,7 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from bench_artworks import artworks  # noqa: E402
+from bench_artworks import _number, artworks  # noqa: E402
 
 from tattotronix.app.onskin import plan_on_surface, simulate_on_surface  # noqa: E402
 from tattotronix.config.params import compose_settings  # noqa: E402
@@ -50,13 +50,8 @@ def skin_figures(source: str, overrides: Sequence[str], accel: float, data: Path
     except TattotronixError as err:
         return {"refused": str(err).splitlines()[0][:90]}
     s = run.summary()
-    return {"worst_um": _num(s["marking_max_um"]), "settled_um": _num(s["settled_mean_um"]),
-            "duration_s": float(d.trajectory.t[-1]), "iou": _num(s["ink_iou"])}
-
-
-def _num(value: object) -> float:
-    """A figure as a float (NaN where there is none)."""
-    return float(value) if isinstance(value, int | float) else float("nan")
+    return {"worst_um": _number(s["marking_max_um"]), "settled_um": _number(s["settled_mean_um"]),
+            "duration_s": float(d.trajectory.t[-1]), "iou": _number(s["ink_iou"])}
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -109,7 +109,8 @@ def limb_ink_figure(d: SkinDrawing, run: SkinRun, path: Path, title: str) -> Non
     """The simulated ink on the limb in 3-D: every inked pixel of the run's raster (in the
     design's chart) carried onto the skin by the chart, over the patch of skin around it.
     Left: seen along the skin's normal at the design's centre (the design as it reads on
-    the skin); right: seen from the side across the limb (how it wraps around it)."""
+    the skin); right: seen along the limb's axis, a little down the normal (how it wraps
+    around the limb)."""
     plt = pyplot()
     grid = run.grid
     step = max(1, int(round(LIMB_INK_PITCH_MM / grid.res_mm)))
