@@ -30,6 +30,7 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, fields, replace
 from pathlib import Path
 
@@ -92,15 +93,26 @@ def servo_commands(program: ServoProgram, calib: Calibration, specs: tuple[Servo
     return out
 
 
-def servo_setup(cfg: Config, desc: RobotDescription, drawing: Drawing) -> ServoSetup:
-    """The servos, the (possibly measured) calibration and the program of ``drawing``."""
+def servo_setup(cfg: Config, desc: RobotDescription, drawing: Drawing,
+                truth: Sequence[ServoSpec] | None = None) -> ServoSetup:
+    """The servos, the (possibly measured) calibration and the program of ``drawing``.
+
+    Args:
+        truth: the servos as built, where they differ from the catalogue's (the
+            robustness study's draws). The corrections are sized from the catalogue (the
+            program cannot know better); the pulse-map fit is measured on ``truth`` (the
+            user measures their own servos); the plant plays ``truth``.
+    """
     calib = calibration_from_config(cfg.hardware, desc.joint_names)
     specs = joint_servos(cfg.robot, desc.joint_names, calib, cfg.servo)
+    built = specs if truth is None else tuple(truth)
+    if len(built) != len(specs):
+        raise TattotronixError(f"{len(built)} servos given for {len(specs)} joints")
     if cfg.hardware.compensate.fit:
-        calib = with_measured_fits(calib, specs, cfg.servo)
+        calib = with_measured_fits(calib, built, cfg.servo)
     program, calib = build_program(cfg, desc, drawing.t, drawing.q, drawing.qd, calib, specs)
-    return ServoSetup(specs, calib, program,
-                      servo_commands(program, calib, specs, bool(cfg.servo.quantise)))
+    return ServoSetup(built, calib, program,
+                      servo_commands(program, calib, built, bool(cfg.servo.quantise)))
 
 
 def _summary(setup: ServoSetup, cfg: Config) -> JsonDict:
@@ -121,8 +133,10 @@ def _summary(setup: ServoSetup, cfg: Config) -> JsonDict:
 
 def run_servo_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Drawing, *,
                    window: object = None, progress: bool = False,
-                   plant_dt_s: float | None = None) -> ClosedLoop:
-    """Play ``drawing`` on the servo plant (module docstring).
+                   plant_dt_s: float | None = None,
+                   truth: Sequence[ServoSpec] | None = None) -> ClosedLoop:
+    """Play ``drawing`` on the servo plant (module docstring); ``truth``: the servos as
+    built, where they differ from the catalogue (:func:`servo_setup`).
 
     Raises:
         TattotronixError: missing models, a bad window, or a servo the catalogue lacks.
@@ -133,7 +147,7 @@ def run_servo_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Dra
     if not mjcf.exists():
         raise StageInputMissing(mjcf, "robot")
     start, end = resolve_window(window, drawing.t, drawing.kind, float(cfg.study.window_s))
-    setup = servo_setup(cfg, desc, drawing)
+    setup = servo_setup(cfg, desc, drawing, truth)
     prog = setup.program
     first = int(math.floor(start * prog.frame_hz + 1e-9))
     last = min(prog.frames - 1, int(math.ceil(end * prog.frame_hz - 1e-9)))

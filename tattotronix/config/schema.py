@@ -83,8 +83,10 @@ __all__ = [
     "RANGE_KEY",
     "Range",
     "RobotConfig",
+    "RobustnessStudyConfig",
     "ServoConfig",
     "ServoMountConfig",
+    "ServoSpreadConfig",
     "Structure",
     "StudyConfig",
     "SurfaceConfig",
@@ -1016,6 +1018,40 @@ class ServoStudyConfig:
 
 
 @settings
+class ServoSpreadConfig:
+    """How far one servo of a catalogue type may be from its catalogue figures, +- % of
+    each (uniform; each joint's servo drawn on its own): the robustness study's stated
+    uncertainty (docs/servos.md, "Robustness"). A figure the catalogue marks as assumed
+    gets +-50 %; a maker's figure, the spread of units and supply voltage."""
+
+    deadband_pct: float = bounded(50.0, lo=0, hi=90, unit="%",
+                                  why="a distributor's sheet, not the maker's")
+    stall_pct: float = bounded(15.0, lo=0, hi=90, unit="%",
+                               why="the maker's figure; the supply's sag and unit spread")
+    speed_pct: float = bounded(15.0, lo=0, hi=90, unit="%",
+                               why="the maker's figure; the supply's sag and unit spread")
+    band_pct: float = bounded(50.0, lo=0, hi=90, unit="%", why="assumed")
+    backlash_pct: float = bounded(50.0, lo=0, hi=90, unit="%", why="assumed")
+    nonlinearity_pct: float = bounded(50.0, lo=0, hi=90, unit="%", why="assumed")
+    armature_pct: float = bounded(50.0, lo=0, hi=90, unit="%", why="assumed")
+    latency_pct: float = bounded(30.0, lo=0, hi=90, unit="%",
+                                 why="half a frame is certain, the servo's own part is not")
+
+
+@settings
+class RobustnessStudyConfig:
+    """The robustness study (docs/servos.md, "Robustness"): ``draws`` arms whose servos
+    differ from the catalogue by ``spread``, each playing the study artwork's busiest
+    window with no correction, each correction alone and all of them, the corrections
+    sized from the catalogue (the program does not know the true servo; the pulse-map
+    fit is measured on it, as a user measures their own)."""
+
+    draws: int = bounded(128, lo=1, hi=100_000, why="arms drawn from the spread")
+    seed: int = bounded(0, lo=0, hi=2**32 - 1)
+    spread: ServoSpreadConfig = field(default_factory=ServoSpreadConfig)
+
+
+@settings
 class FillCase:
     """One fill style of the fill-styles comparison (``stages/fills.py``): the values of
     ``toolpath.fill_style`` and ``toolpath.fill_angle_deg`` it plans with."""
@@ -1104,6 +1140,7 @@ class StudyConfig:
                                              hi=1_000_000, unit="rad/s^3")
     actuator: ActuatorStudyConfig = field(default_factory=ActuatorStudyConfig)
     servo: ServoStudyConfig = field(default_factory=ServoStudyConfig)
+    robustness: RobustnessStudyConfig = field(default_factory=RobustnessStudyConfig)
     fills: FillsStudyConfig = field(default_factory=FillsStudyConfig)
 
 

@@ -33,16 +33,23 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
 
 import numpy as np
 from numpy.typing import NDArray
 
-from tattotronix.config.schema import CompensateConfig, RobotConfig, ServoPlantConfig
+from tattotronix.config.schema import (
+    CompensateConfig,
+    RobotConfig,
+    ServoPlantConfig,
+    ServoSpreadConfig,
+)
 from tattotronix.errors import TattotronixError
 from tattotronix.hardware.servos import Calibration, PulseFit, ServoChannel
 from tattotronix.plants.servo_plant import ServoSpec
 
-__all__ = ["compensate", "joint_servos", "measure_fit", "servo_lead_s", "with_measured_fits"]
+__all__ = ["SPREAD_FIELDS", "compensate", "joint_servos", "measure_fit", "servo_lead_s",
+           "spread_servos", "with_measured_fits"]
 
 Array = NDArray[np.float64]
 
@@ -90,6 +97,38 @@ def joint_servos(robot: RobotConfig, joint_names: Sequence[str], calib: Calibrat
     return tuple(out)
 
 
+#: the spread's setting (``ServoSpreadConfig.<key>_pct``) -> the servo's figures it moves
+SPREAD_FIELDS: dict[str, tuple[str, ...]] = {
+    "deadband": ("deadband_rad",), "stall": ("stall_nm",), "speed": ("speed_rad_s",),
+    "band": ("band_rad",), "backlash": ("backlash_rad",),
+    "nonlinearity": ("nonlinearity_rad",), "armature": ("armature_kgm2",),
+    "latency": ("latency_s",),
+}
+
+
+def spread_servos(specs: Sequence[ServoSpec], spread: ServoSpreadConfig,
+                  rng: np.random.Generator) -> tuple[ServoSpec, ...]:
+    """One arm's servos as built, drawn from the catalogue's ``specs`` and ``spread``:
+    each figure of each joint's servo times ``1 + p u``, ``p`` its spread (% / 100) and
+    ``u`` uniform in [-1, 1], every figure and joint on its own. A figure that is zero
+    (switched off, or none: a bus servo's bend) stays zero; a bus servo's dead band is
+    its encoder step, exact. The draws come in a fixed order (joint, then
+    :data:`SPREAD_FIELDS`), so a seed gives the same arms whatever the spreads."""
+    out = []
+    for s in specs:
+        changes: dict[str, float] = {}
+        for key, names in SPREAD_FIELDS.items():
+            u = float(rng.uniform(-1.0, 1.0))
+            p = float(getattr(spread, f"{key}_pct")) / 100.0
+            for name in names:
+                value = float(getattr(s, name))
+                if value == 0.0 or (s.bus and key == "deadband"):
+                    continue
+                changes[name] = value * (1.0 + p * u)
+        out.append(replace(s, **changes))  # type: ignore[arg-type]
+    return tuple(out)
+
+
 def measure_fit(spec: ServoSpec, servo: ServoChannel, points: int, order: int,
                 protractor_deg: float) -> PulseFit:
     """The calibration procedure (``stages/servo_pulse.py ... record=``) on a simulated
@@ -106,8 +145,6 @@ def with_measured_fits(calib: Calibration, specs: Sequence[ServoSpec],
                        servo: ServoPlantConfig) -> Calibration:
     """``calib`` with every PWM joint's servo A measured (:func:`measure_fit`) and fitted,
     as a user's calibration file holds it after ``servo_pulse.py ... record=``."""
-    from dataclasses import replace
-
     joints = []
     for j, spec in zip(calib.joints, specs, strict=True):
         if spec.bus:

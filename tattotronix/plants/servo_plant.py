@@ -131,13 +131,20 @@ def play(x: Array, width: float, start: float | None = None) -> Array:
     h = 0.5 * width
     y0 = float(x[0]) if start is None else float(start)
     lo, hi = x - h, x + h
-    if len(x) < 4 * _PLAY_BLOCK or not (np.isfinite(y0) and np.all(np.isfinite(x))):
+    if len(x) < _PLAY_STEPS_BELOW or not (np.isfinite(y0) and np.all(np.isfinite(x))):
         return _play_steps(lo, hi, y0)
     return _play_blocks(lo, hi, y0)
 
 
-#: samples per block of :func:`_play_blocks`
-_PLAY_BLOCK = 1024
+#: signals shorter than this are played one sample at a time (:func:`_play_steps`)
+_PLAY_STEPS_BELOW = 4096
+
+
+def _block_len(k: int) -> int:
+    """Samples per block of :func:`_play_blocks` for ``k`` samples: about ``sqrt(k)``,
+    which balances its two loops (the steps of a block, in numpy across the blocks, and
+    the blocks, in Python); any length gives the same numbers."""
+    return max(16, math.isqrt(k))
 
 
 def _clamp(y: Array, lo: Array, hi: Array) -> Array:
@@ -167,13 +174,14 @@ def _play_blocks(lo: Array, hi: Array, y0: float) -> Array:
     in parallel.
     """
     k = len(lo)
-    blocks = -(-k // _PLAY_BLOCK)
-    pad = blocks * _PLAY_BLOCK - k  # the last block runs on past the end on its last bounds
+    block = _block_len(k)
+    blocks = -(-k // block)
+    pad = blocks * block - k  # the last block runs on past the end on its last bounds
     # (step in block, block): each step of every block is one contiguous row
     los = np.ascontiguousarray(
-        np.concatenate([lo, np.full(pad, lo[-1])]).reshape(blocks, _PLAY_BLOCK).T)
+        np.concatenate([lo, np.full(pad, lo[-1])]).reshape(blocks, block).T)
     his = np.ascontiguousarray(
-        np.concatenate([hi, np.full(pad, hi[-1])]).reshape(blocks, _PLAY_BLOCK).T)
+        np.concatenate([hi, np.full(pad, hi[-1])]).reshape(blocks, block).T)
     band_lo = np.full(blocks, -np.inf)
     band_hi = np.full(blocks, np.inf)
     for step_lo, step_hi in zip(los, his, strict=True):
@@ -184,7 +192,7 @@ def _play_blocks(lo: Array, hi: Array, y0: float) -> Array:
     for b, (a, c) in enumerate(zip(band_lo.tolist(), band_hi.tolist(), strict=True)):
         entering[b] = y
         y = a if y < a else (c if y > c else y)
-    out = np.empty((_PLAY_BLOCK, blocks))
+    out = np.empty((block, blocks))
     ys = entering
     for j, (step_lo, step_hi) in enumerate(zip(los, his, strict=True)):
         ys = out[j] = _clamp(ys, step_lo, step_hi)
