@@ -70,6 +70,18 @@ def draw_data(tmp_path: Path, desc: RobotDescription) -> Path:
 
 
 @pytest.fixture(scope="session")
+def models_data(desc: RobotDescription, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A data folder holding only the generated models (what the robot stage writes), so
+    a drawing is planned in memory (a clean clone has no DVC data). Shared by the tests
+    that read it; none writes into it."""
+    data = tmp_path_factory.mktemp("models_data") / "data"
+    (data / "robot").mkdir(parents=True)
+    (data / "robot" / f"{desc.name}.urdf").write_text(to_urdf(desc))
+    (data / "robot" / f"{desc.name}.xml").write_text(to_mjcf(desc))
+    return data
+
+
+@pytest.fixture(scope="session")
 def models(desc: RobotDescription, tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """URDF and MJCF files of the default description."""
     return write_models(desc, tmp_path_factory.mktemp("models"))

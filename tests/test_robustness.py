@@ -25,8 +25,6 @@ from tattotronix.hardware.servos import default_calibration
 from tattotronix.kinematics import Chain
 from tattotronix.plants.servo_plant import ServoSpec
 from tattotronix.robot.description import RobotDescription
-from tattotronix.robot.mjcf import to_mjcf
-from tattotronix.robot.urdf import to_urdf
 from tattotronix.studies.robustness import (
     CONDITIONS,
     QUANTILES,
@@ -111,17 +109,7 @@ def test_the_stretch_is_the_whole_drawings_curve() -> None:
     np.testing.assert_array_equal(part.kind[1:], kind[(t > t0) & (t <= part.t[-1] + t0 + 1e-12)])
 
 
-@pytest.fixture(scope="module")
-def study_data(desc: RobotDescription, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A data folder holding only the generated models (the emblem is planned)."""
-    data = tmp_path_factory.mktemp("robust") / "data"
-    (data / "robot").mkdir(parents=True)
-    (data / "robot" / f"{desc.name}.urdf").write_text(to_urdf(desc))
-    (data / "robot" / f"{desc.name}.xml").write_text(to_mjcf(desc))
-    return data
-
-
-def test_a_small_study_end_to_end(study_data: Path, desc: RobotDescription,
+def test_a_small_study_end_to_end(models_data: Path, desc: RobotDescription,
                                   tmp_path: Path) -> None:
     """Three arms over a 3 s window: every condition scored; the catalogue arm with every
     correction is the servo plant's own run of that window (the program compiled on the
@@ -129,7 +117,7 @@ def test_a_small_study_end_to_end(study_data: Path, desc: RobotDescription,
     every arm; the figure is drawn from the metrics file."""
     overrides = ["study.robustness.draws=3", "study.window_s=3"]
     cfg = compose_settings(overrides)
-    m = run_robustness(cfg, study_data, workers=1)
+    m = run_robustness(cfg, models_data, workers=1)
     assert m["draws"] == 3 and set(m["conditions"]) == set(CONDITIONS)  # type: ignore[arg-type]
     conds: dict = m["conditions"]  # type: ignore[assignment]
     for c in CONDITIONS:
@@ -144,8 +132,8 @@ def test_a_small_study_end_to_end(study_data: Path, desc: RobotDescription,
     every = compose_settings(["backend=servo", *overrides,
                               *(f"hardware.compensate.{k}=true" for k in
                                 ("fit", "backlash", "deadband", "sag", "lead"))])
-    drawing = resolve_drawing(every, study_data, desc)
-    loop = run_servo_loop(every, study_data, desc, drawing, window="busiest")
+    drawing = resolve_drawing(every, models_data, desc)
+    loop = run_servo_loop(every, models_data, desc, drawing, window="busiest")
     own = loop.metrics(loop.errors(Chain.from_description(desc),
                                    float(every.draw.settle_periods)))
     assert conds["all"]["catalogue_mean_mm"] == pytest.approx(

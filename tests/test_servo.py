@@ -34,8 +34,6 @@ from tattotronix.kinematics import Chain
 from tattotronix.plants.base import PlantSettings
 from tattotronix.plants.servo_plant import ServoArm, ServoRun, ServoSpec, play
 from tattotronix.robot.description import RobotDescription
-from tattotronix.robot.mjcf import to_mjcf
-from tattotronix.robot.urdf import to_urdf
 
 #: the servo plant's imperfections (``servo.<name>``)
 IMPERFECTIONS = ("quantise", "deadband", "backlash", "nonlinearity", "lag")
@@ -360,20 +358,9 @@ def test_a_window_shorter_than_two_frames_is_refused(draw_data: Path, desc: Robo
 # --- the emblem: the ideal servo and the corrections ---------------------------------------
 
 @pytest.fixture(scope="module")
-def emblem_data(desc: RobotDescription, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A data folder holding only the generated models: no stored drawing, so the
-    built-in emblem is planned (in about 2 s; a clean clone has no DVC data)."""
-    data = tmp_path_factory.mktemp("emblem") / "data"
-    (data / "robot").mkdir(parents=True)
-    (data / "robot" / f"{desc.name}.urdf").write_text(to_urdf(desc))
-    (data / "robot" / f"{desc.name}.xml").write_text(to_mjcf(desc))
-    return data
-
-
-@pytest.fixture(scope="module")
-def emblem(desc: RobotDescription, emblem_data: Path) -> Drawing:
+def emblem(desc: RobotDescription, models_data: Path) -> Drawing:
     """The built-in emblem drawing, planned."""
-    return resolve_drawing(compose_settings(), emblem_data, desc)
+    return resolve_drawing(compose_settings(), models_data, desc)
 
 
 @pytest.fixture(scope="module")
@@ -388,12 +375,12 @@ def _tips(chain: Chain, loop: ClosedLoop) -> tuple[np.ndarray, np.ndarray]:
 
 
 def test_the_ideal_servo_draws_the_mujoco_plants_ink(desc: RobotDescription, emblem: Drawing,
-                                                     emblem_data: Path, chain: Chain) -> None:
+                                                     models_data: Path, chain: Chain) -> None:
     """Every imperfection off, the servo plant's ink is the MuJoCo plant's, to the needle."""
     cfg_mj = compose_settings(["backend=mujoco"])
     cfg_sv = compose_settings(["backend=servo", *IDEAL])
-    mj = run_closed_loop(cfg_mj, emblem_data, desc, emblem, window=WINDOW)
-    sv = run_servo_loop(cfg_sv, emblem_data, desc, emblem, window=WINDOW)
+    mj = run_closed_loop(cfg_mj, models_data, desc, emblem, window=WINDOW)
+    sv = run_servo_loop(cfg_sv, models_data, desc, emblem, window=WINDOW)
     assert mj.run.verdict == "ok" and sv.run.verdict == "ok"
     np.testing.assert_array_equal(sv.run.t, mj.run.t)  # the same plant steps
     tip_mj, tip_ref = _tips(chain, mj)
@@ -412,14 +399,14 @@ def test_the_ideal_servo_draws_the_mujoco_plants_ink(desc: RobotDescription, emb
     ("backlash", "backlash"), ("deadband", "deadband"), ("nonlinearity", "fit"),
     ("lag", "sag"), ("lag", "lead")])
 def test_each_correction_halves_its_own_error(desc: RobotDescription, emblem: Drawing,
-                                              emblem_data: Path, chain: Chain,
+                                              models_data: Path, chain: Chain,
                                               imperfection: str, correction: str) -> None:
     """One imperfection alone: its correction at least halves the mean marking error."""
     mean = {}
     for on in (False, True):
         cfg = compose_settings(["backend=servo", *_only(imperfection),
                                 f"hardware.compensate.{correction}={str(on).lower()}"])
-        loop = run_servo_loop(cfg, emblem_data, desc, emblem, window=WINDOW)
+        loop = run_servo_loop(cfg, models_data, desc, emblem, window=WINDOW)
         assert loop.run.verdict == "ok"
         summary: Any = loop.controller
         assert summary["compensate"][correction] is on

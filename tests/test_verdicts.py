@@ -25,8 +25,6 @@ from tattotronix.control.tracking import ERROR_KEYS, tracking_errors
 from tattotronix.control.verdict import VERDICTS, Tolerance, judge, length_text
 from tattotronix.io.outputs import Outputs
 from tattotronix.robot.description import RobotDescription
-from tattotronix.robot.mjcf import to_mjcf
-from tattotronix.robot.urdf import to_urdf
 from tattotronix.studies.base import VERDICT_COLOUR, StudyCase, load_cases
 from tattotronix.studies.registry import STUDIES
 
@@ -197,19 +195,9 @@ def test_study_figures_and_summaries_take_every_verdict(study: str, tmp_path: Pa
 # --- the three runs of the issue -----------------------------------------------------------
 
 @pytest.fixture(scope="module")
-def plan_data(desc: RobotDescription, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A data folder with only the generated models: the drawings are planned in memory."""
-    data = tmp_path_factory.mktemp("verdicts") / "data"
-    (data / "robot").mkdir(parents=True)
-    (data / "robot" / f"{desc.name}.urdf").write_text(to_urdf(desc))
-    (data / "robot" / f"{desc.name}.xml").write_text(to_mjcf(desc))
-    return data
-
-
-@pytest.fixture(scope="module")
-def emblem(desc: RobotDescription, plan_data: Path) -> Drawing:
+def emblem(desc: RobotDescription, models_data: Path) -> Drawing:
     """The built-in emblem, planned at the defaults (as the pipeline plans it)."""
-    return resolve_drawing(compose_settings(), plan_data, desc)
+    return resolve_drawing(compose_settings(), models_data, desc)
 
 
 #: the pipeline's lineart-vector (dvc.yaml, ``artworks``), planned in memory as "lineart"
@@ -231,14 +219,14 @@ def _scored(cfg: Any, data: Path, desc: RobotDescription, loop: Any, tmp: Path,
 
 @pytest.mark.slow
 def test_the_servo_emblem_is_out_of_tolerance_and_says_the_arm_will_miss_in_mm(
-        desc: RobotDescription, plan_data: Path, emblem: Drawing, tmp_path: Path,
+        desc: RobotDescription, models_data: Path, emblem: Drawing, tmp_path: Path,
         caplog: pytest.LogCaptureFixture) -> None:
     """Before: ``ok; settled 14115.99 / 18551.72 um ... ink IoU 0.073``. The defaults
     correct the sag and lead the lag (``hardware.compensate``), not the pulse map's bend:
     still about 12 mm off."""
     cfg = compose_settings(["backend=servo"])
-    loop = run_servo_loop(cfg, plan_data, desc, emblem)
-    m, said = _scored(cfg, plan_data, desc, loop, tmp_path, caplog)
+    loop = run_servo_loop(cfg, models_data, desc, emblem)
+    m, said = _scored(cfg, models_data, desc, loop, tmp_path, caplog)
     assert m["verdict"] == "out-of-tolerance" and m["stable"] and m["completed"]
     assert m["within_tolerance"] is False and m["tolerance_um"] == pytest.approx(150.0)
     assert 11_000 < m["settled_mean_um"] < 13_500 and 15_000 < m["marking_max_um"] < 18_000
@@ -259,21 +247,21 @@ def test_the_servo_emblem_is_out_of_tolerance_and_says_the_arm_will_miss_in_mm(
 
 @pytest.mark.slow
 def test_a_saturated_run_is_never_ok_and_its_ink_is_not_scored(
-        desc: RobotDescription, plan_data: Path, tmp_path: Path,
+        desc: RobotDescription, models_data: Path, tmp_path: Path,
         caplog: pytest.LogCaptureFixture) -> None:
     """The pipeline's lineart-vector on MuJoCo, with a torque limit 0.3 % under the peak
     it needs (the gravity hold of joint 2 at its farthest pose): it saturates, and holds
     the drawing within tolerance. Before, such a run (then: the 20 N m limit on the move
     from home) said ``ok`` and its ink scored IoU 0.998."""
-    drawing = resolve_drawing(compose_settings(LINEART_VECTOR), plan_data, desc)
-    free, _ = _scored(compose_settings(LINEART_VECTOR), plan_data, desc,
-                      run_closed_loop(compose_settings(LINEART_VECTOR), plan_data, desc,
+    drawing = resolve_drawing(compose_settings(LINEART_VECTOR), models_data, desc)
+    free, _ = _scored(compose_settings(LINEART_VECTOR), models_data, desc,
+                      run_closed_loop(compose_settings(LINEART_VECTOR), models_data, desc,
                                       drawing), tmp_path / "free", caplog)
     assert free["verdict"] == "ok"
     limit = round(0.997 * free["peak_torque_nm"], 4)
     cfg = compose_settings([*LINEART_VECTOR, f"controller.torque_limit_nm={limit}"])
-    loop = run_closed_loop(cfg, plan_data, desc, drawing)
-    m, said = _scored(cfg, plan_data, desc, loop, tmp_path, caplog)
+    loop = run_closed_loop(cfg, models_data, desc, drawing)
+    m, said = _scored(cfg, models_data, desc, loop, tmp_path, caplog)
     assert m["verdict"] == "saturated" and m["stable"] and m["completed"]
     assert m["peak_torque_nm"] == pytest.approx(limit)
     assert m["reason"].startswith("the torque of joint_")
@@ -292,14 +280,14 @@ def test_a_saturated_run_is_never_ok_and_its_ink_is_not_scored(
 @pytest.mark.parametrize("structure, loop_path", [("pid_g_v", "engine"),
                                                   ("computed_torque", "python")])
 def test_a_diverged_run_scores_nothing(
-        desc: RobotDescription, plan_data: Path, emblem: Drawing, tmp_path: Path,
+        desc: RobotDescription, models_data: Path, emblem: Drawing, tmp_path: Path,
         caplog: pytest.LogCaptureFixture, structure: str, loop_path: str) -> None:
     """``controller.wn=10000`` diverges in the first ticks; before, its metrics said
     ``ink_iou 1.0`` (no ink against no plan; the engine path) or ``worst_um 0.0`` (the
     Python path, one sample at the start)."""
     cfg = compose_settings(["controller.wn=10000", f"controller.structure={structure}"])
-    loop = run_closed_loop(cfg, plan_data, desc, emblem)
-    m, said = _scored(cfg, plan_data, desc, loop, tmp_path, caplog)
+    loop = run_closed_loop(cfg, models_data, desc, emblem)
+    m, said = _scored(cfg, models_data, desc, loop, tmp_path, caplog)
     assert m["loop_path"] == loop_path
     assert m["verdict"] == "diverged" and not m["stable"] and not m["completed"]
     assert m["within_tolerance"] is None and m["sim_s"] <= 1.0

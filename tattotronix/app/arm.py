@@ -56,11 +56,17 @@ def build_program(cfg: Config, desc: RobotDescription, t: Array, q: Array, qd: A
         t, q, qd: the drawing.
         calib: the calibration (default: from the config).
         servos: the servos the corrections are sized for (default: as mounted, from the
-            catalogue, :func:`~tattotronix.hardware.servo_model.joint_servos`).
+            catalogue, :func:`~tattotronix.hardware.servo_model.joint_servos`, with the
+            figures ``hardware.servo_figures_file`` identified).
     """
     from tattotronix.config.schema import ServoPlantConfig
     from tattotronix.hardware.program import compile_program
-    from tattotronix.hardware.servo_model import compensate, joint_servos, servo_lead_s
+    from tattotronix.hardware.servo_model import (
+        compensate,
+        joint_servos,
+        servo_figures,
+        servo_lead_s,
+    )
 
     if calib is None:
         calib = calibration_from_config(cfg.hardware, desc.joint_names)
@@ -69,7 +75,8 @@ def build_program(cfg: Config, desc: RobotDescription, t: Array, q: Array, qd: A
     lead = None
     if comp.backlash or comp.deadband or comp.sag or comp.lead:
         specs = tuple(servos) if servos is not None else joint_servos(
-            cfg.robot, desc.joint_names, calib, ServoPlantConfig())
+            cfg.robot, desc.joint_names, calib, ServoPlantConfig(),
+            servo_figures(cfg.hardware, desc.joint_names))
         if comp.lead:
             lead = servo_lead_s(specs, float(calib.frame_hz))
         frame_s = 1.0 / float(calib.frame_hz)

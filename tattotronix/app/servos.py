@@ -45,7 +45,7 @@ from tattotronix.control.verdict import Tolerance
 from tattotronix.errors import StageInputMissing, TattotronixError
 from tattotronix.hardware.arm import calibration_from_config
 from tattotronix.hardware.program import ServoProgram
-from tattotronix.hardware.servo_model import joint_servos, with_measured_fits
+from tattotronix.hardware.servo_model import joint_servos, servo_figures, with_measured_fits
 from tattotronix.hardware.servos import Calibration
 from tattotronix.io.jsontypes import JsonDict
 from tattotronix.plants.base import Array, PlantSettings
@@ -104,7 +104,8 @@ def servo_setup(cfg: Config, desc: RobotDescription, drawing: Drawing,
             user measures their own servos); the plant plays ``truth``.
     """
     calib = calibration_from_config(cfg.hardware, desc.joint_names)
-    specs = joint_servos(cfg.robot, desc.joint_names, calib, cfg.servo)
+    specs = joint_servos(cfg.robot, desc.joint_names, calib, cfg.servo,
+                         servo_figures(cfg.hardware, desc.joint_names))
     built = specs if truth is None else tuple(truth)
     if len(built) != len(specs):
         raise TattotronixError(f"{len(built)} servos given for {len(specs)} joints")

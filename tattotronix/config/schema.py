@@ -944,6 +944,11 @@ class HardwareConfig:
     # Any: OmegaConf 2.3 types no nested mapping of mixed values (it has no Union types)
     servos: dict[str, Any] = MISSING  # Any: OmegaConf (above); hardware/servos.py checks it
     calibration_file: str | None = None
+    # the servos' figures identified from a photographed calibration sheet
+    # (stages/calibrate.py photo=...; docs/servos.md, "Identification from a drawn sheet"):
+    # a YAML file whose per-joint backlash and dead band replace the catalogue's, for the
+    # corrections and the servo plant alike; null: the catalogue's
+    servo_figures_file: str | None = None
     # the slow move to the start pose (and lifts), fastest joint
     ramp_rad_s: float = bounded(0.25, lo=0, lo_open=True, hi=10, unit="rad/s")
     state_file: str = "arm/state.json"  # under paths.data: last commanded pose, resume point

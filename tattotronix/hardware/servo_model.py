@@ -32,14 +32,16 @@ Units: rad inside (``_deg``, ``_us``, ``_ms`` as named).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.config.schema import (
     CompensateConfig,
+    HardwareConfig,
     RobotConfig,
     ServoPlantConfig,
     ServoSpreadConfig,
@@ -48,16 +50,20 @@ from tattotronix.errors import TattotronixError
 from tattotronix.hardware.servos import Calibration, PulseFit, ServoChannel
 from tattotronix.plants.servo_plant import ServoSpec
 
-__all__ = ["SPREAD_FIELDS", "compensate", "joint_servos", "measure_fit", "servo_lead_s",
-           "spread_servos", "with_measured_fits"]
+__all__ = ["SERVO_FIGURES", "SPREAD_FIELDS", "compensate", "joint_servos",
+           "load_servo_figures", "measure_fit", "servo_figures", "servo_lead_s", "spread_servos",
+           "with_measured_fits"]
 
 Array = NDArray[np.float64]
 
 
 def joint_servos(robot: RobotConfig, joint_names: Sequence[str], calib: Calibration,
-                 servo: ServoPlantConfig) -> tuple[ServoSpec, ...]:
+                 servo: ServoPlantConfig, measured: Mapping[str, Mapping[str, float]]
+                 | None = None) -> tuple[ServoSpec, ...]:
     """Each joint's servo: the mounted one (``robot.servo_mounts``) or ``servo.type`` on
-    every joint, with the imperfections ``servo`` switches off set to zero.
+    every joint, with the imperfections ``servo`` switches off set to zero, and the
+    figures ``measured`` gives (joint -> ``backlash_deg`` / ``deadband_deg``:
+    :func:`load_servo_figures`) in place of the catalogue's.
 
     Raises:
         TattotronixError: an unknown servo type, or a joint with no servo mounted.
@@ -94,7 +100,70 @@ def joint_servos(robot: RobotConfig, joint_names: Sequence[str], calib: Calibrat
             armature_kgm2=count * float(c.armature_kgm2),
             latency_s=float(c.latency_ms) * 1e-3 if servo.lag else 0.0,
             step_rad=step if servo.quantise else 0.0, count=count, lag=bool(servo.lag)))
+        own = (measured or {}).get(name, {})
+        if "backlash_deg" in own and servo.backlash:
+            out[-1] = replace(out[-1], backlash_rad=math.radians(float(own["backlash_deg"])))
+        if "deadband_deg" in own and servo.deadband:
+            out[-1] = replace(out[-1], deadband_rad=math.radians(float(own["deadband_deg"])))
     return tuple(out)
+
+
+#: the figures a servo-figures file may give per joint, and their largest sane value, deg
+SERVO_FIGURES = {"backlash_deg": 20.0, "deadband_deg": 20.0}
+
+
+def servo_figures(hw: HardwareConfig, joint_names: Sequence[str]
+                  ) -> dict[str, dict[str, float]] | None:
+    """The identified figures ``hardware.servo_figures_file`` gives (None: unset)."""
+    if not hw.servo_figures_file:
+        return None
+    return load_servo_figures(Path(str(hw.servo_figures_file)), joint_names)
+
+
+def load_servo_figures(path: Path, joint_names: Sequence[str]
+                       ) -> dict[str, dict[str, float]]:
+    """A servo-figures file (``hardware.servo_figures_file``, written by
+    ``stages/calibrate.py photo=...``): ``joints: {<joint>: {backlash_deg: ..,
+    deadband_deg: ..}}``, each figure a finite number in ``[0, 20]`` deg.
+
+    Raises:
+        TattotronixError: a missing or unreadable file, an unknown joint or figure, or a
+            value out of range (every problem, in one message naming the file).
+    """
+    import yaml
+
+    try:
+        data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as exc:
+        raise TattotronixError(f"hardware.servo_figures_file={path}: cannot read it "
+                               f"({type(exc).__name__}): run stages/calibrate.py photo=...") \
+            from None
+    joints = data.get("joints") if isinstance(data, dict) else None
+    if not isinstance(joints, dict):
+        raise TattotronixError(f"hardware.servo_figures_file={path}: no 'joints' mapping")
+    problems: list[str] = []
+    out: dict[str, dict[str, float]] = {}
+    for joint, figures in joints.items():
+        if str(joint) not in joint_names:
+            problems.append(f"joints.{joint}: not a joint of the arm ({', '.join(joint_names)})")
+            continue
+        if not isinstance(figures, dict):
+            problems.append(f"joints.{joint}: a mapping of figures, not {figures!r}")
+            continue
+        for key, value in figures.items():
+            hi = SERVO_FIGURES.get(str(key))
+            if hi is None:
+                continue  # the file's notes (the fit's factors, residuals)
+            ok = isinstance(value, int | float) and not isinstance(value, bool) \
+                and math.isfinite(value) and 0.0 <= value <= hi
+            if not ok:
+                problems.append(f"joints.{joint}.{key}: a number of degrees in [0, {hi:g}], "
+                                f"not {value!r}")
+                continue
+            out.setdefault(str(joint), {})[str(key)] = float(value)
+    if problems:
+        raise TattotronixError(f"hardware.servo_figures_file={path}: " + "; ".join(problems))
+    return out
 
 
 #: the spread's setting (``ServoSpreadConfig.<key>_pct``) -> the servo's figures it moves

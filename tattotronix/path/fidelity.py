@@ -24,6 +24,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import overload
 
 import cv2
 import numpy as np
@@ -43,6 +44,10 @@ Array = NDArray[np.float64]
 Mask = NDArray[np.bool_]
 _SHIFT = 4  # cv2 fixed-point bits: 1/16 px
 _CROSS = cv2.getStructuringElement(cv2.MORPH_CROSS, (3, 3))
+
+
+#: pixel coordinates: indices (``np.nonzero``'s) or fractional
+_Coords = NDArray[np.intp] | NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -66,6 +71,20 @@ class InkGrid:
         col = (uv_mm[:, 0] - self.u0_mm) / self.res_mm
         row = (self.v0_mm - uv_mm[:, 1]) / self.res_mm
         return np.stack([col, row], axis=1)
+
+    @overload
+    def to_mm(self, col: float, row: float) -> tuple[float, float]: ...
+    @overload
+    def to_mm(self, col: _Coords, row: _Coords) -> tuple[Array, Array]: ...
+
+    def to_mm(self, col: float | _Coords, row: float | _Coords
+              ) -> tuple[float | Array, float | Array]:
+        """Pixel coordinates (fractional; numbers, or arrays of any lengths) -> panel mm:
+        ``col`` to ``u``, ``row`` to ``v``, the inverse of :meth:`to_px`."""
+        u = self.u0_mm + col * self.res_mm
+        v = self.v0_mm - row * self.res_mm
+        return (float(u), float(v)) if np.ndim(u) == 0 and np.ndim(v) == 0 else \
+            (np.asarray(u, dtype=np.float64), np.asarray(v, dtype=np.float64))
 
 
 def grid_over(points_mm: Sequence[Array], res_mm: float, margin_mm: float = 1.0) -> InkGrid:
@@ -122,8 +141,7 @@ def rasterise_runs(runs: Sequence[Array], grid: InkGrid, needle_mm: float) -> Ma
 def artwork_on(mask: InkMask, grid: InkGrid) -> Mask:
     """The artwork on ``grid``: each pixel takes the mask pixel its centre falls in."""
     rows, cols = grid.shape
-    u = grid.u0_mm + np.arange(cols) * grid.res_mm
-    v = grid.v0_mm - np.arange(rows) * grid.res_mm
+    u, v = grid.to_mm(np.arange(cols), np.arange(rows))
     mc = np.floor((u - mask.xs[0]) / mask.res_mm + 0.5).astype(np.int64)
     mr = np.floor((mask.ys[0] - v) / mask.res_mm + 0.5).astype(np.int64)
     h, w = mask.ink.shape
@@ -393,8 +411,7 @@ class PlannedInk:
             x, y, w, h, area = (int(v) for v in stats[k, :5])
             if area * res * res < MISSED_MIN_NEEDLES2 * needle_mm ** 2:
                 continue
-            at = (self.grid.u0_mm + (x + (w - 1) / 2) * res,
-                  self.grid.v0_mm - (y + (h - 1) / 2) * res)
+            at = self.grid.to_mm(x + (w - 1) / 2, y + (h - 1) / 2)
             parts.append(MissedPart(at, (w * res, h * res), area * res * res))
         return sorted(parts, key=lambda p: -p.area_mm2)
 

@@ -131,8 +131,7 @@ def fills_figure(comparison: FillComparison, zoom_mm: float, path: Path) -> None
     res = first.grid.res_mm
     r0, c0 = densest_square(first.art, round(zoom_mm / res))
     # the square in panel mm (the grids may differ from case to case)
-    u0 = first.grid.u0_mm + c0 * res
-    v0 = first.grid.v0_mm - r0 * res
+    u0, v0 = first.grid.to_mm(c0, r0)
     ref = cases[0].time_s
     for ax, c in zip(axes.flat, cases, strict=False):
         g = c.ink.grid

@@ -179,16 +179,17 @@ def ink_figure(layers: Sequence[InkLayer], grid: InkGrid, path: Path, *, title: 
                for ly in layers]
     if worst is not None:
         r, c = worst
-        uc, vc = grid.u0_mm + c * res, grid.v0_mm - r * res
+        uc, vc = grid.to_mm(c, r)
         half = zoom_mm / 2
         az = fig.add_axes(_ZOOM)
         r0, r1 = max(0, int(r - half / res)), min(rows, int(r + half / res) + 1)
         c0, c1 = max(0, int(c - half / res)), min(cols, int(c + half / res) + 1)
         crop = _compose([(ly.pixels[r0:r1, c0:c1], ly.colour) for ly in layers],
                         (r1 - r0, c1 - c0))
+        (left, bottom), (right, top) = grid.to_mm(c0 - 0.5, r1 - 0.5), grid.to_mm(c1 - 0.5,
+                                                                                 r0 - 0.5)
         az.imshow(crop, origin="upper", interpolation="nearest",
-                  extent=(grid.u0_mm + (c0 - 0.5) * res, grid.u0_mm + (c1 - 0.5) * res,
-                          grid.v0_mm - (r1 - 0.5) * res, grid.v0_mm - (r0 - 0.5) * res))
+                  extent=(left, right, bottom, top))
         az.set_xlim(uc - half, uc + half)
         az.set_ylim(vc - half, vc + half)
         az.set_aspect("equal")

@@ -115,8 +115,7 @@ def limb_ink_figure(d: SkinDrawing, run: SkinRun, path: Path, title: str) -> Non
     grid = run.grid
     step = max(1, int(round(LIMB_INK_PITCH_MM / grid.res_mm)))
     rows, cols = np.nonzero(run.sim_ink[::step, ::step])
-    uv = np.column_stack([grid.u0_mm + cols * step * grid.res_mm,
-                          grid.v0_mm - rows * step * grid.res_mm]) - np.asarray(d.centre_mm)
+    uv = np.column_stack(grid.to_mm(cols * step, rows * step)) - np.asarray(d.centre_mm)
     ink = d.chart.to_surface(uv) if len(uv) else None
     centre = d.chart.to_surface(np.zeros((1, 2)))
     v, f = d.surface.vertices, d.surface.faces
