@@ -30,7 +30,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
+from tattotronix.errors import TattotronixError  # first: the package, before any library
 
 log = logging.getLogger("tattotronix.calibrate")
 
@@ -40,12 +40,12 @@ _KEYS = ("sheet", "photo", "out", "demo", "seed")
 def main(argv: list[str]) -> int:
     """Parse ``sheet=``, ``photo=``, ``out=``, ``demo=``, ``seed=``; the rest are overrides."""
     import cv2
+    import numpy as np
     import yaml
 
     from tattotronix.app.api import _robot_models
     from tattotronix.app.identify import SheetModel, calibration_plan, identify
     from tattotronix.config.schema import ServoSpreadConfig
-    from tattotronix.errors import TattotronixError
     from tattotronix.hardware.calibsheet import read_photo, sheet_image, synthetic_photo
     from tattotronix.hardware.servo_model import spread_servos
 
