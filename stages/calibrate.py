@@ -43,7 +43,6 @@ def main(argv: list[str]) -> int:
     import numpy as np
     import yaml
 
-    from tattotronix.app.api import _robot_models
     from tattotronix.app.identify import SheetModel, calibration_plan, identify
     from tattotronix.config.schema import ServoSpreadConfig
     from tattotronix.hardware.calibsheet import read_photo, sheet_image, synthetic_photo
@@ -66,8 +65,7 @@ def main(argv: list[str]) -> int:
         ink = None if demo else read_photo(Path(args["photo"]), name=f"photo={args['photo']}")
         work = Path(tempfile.mkdtemp(prefix="tattotronix-calibration-"))
         plan = calibration_plan(overrides, workdir=work)
-        _robot_models(plan.desc, plan.workdir)
-        model = SheetModel.of(plan.cfg, plan.workdir, plan.desc, plan._drawing())
+        model = SheetModel.of_plan(plan)
         truth = None
         if demo:
             only = ServoSpreadConfig(**{f"{k}_pct": 0.0 for k in (

@@ -158,13 +158,11 @@ def test_identification_recovers_the_backlash_from_a_synthetic_photo(
     """A hidden arm whose backlash differs from the catalogue by -30 to +40 % draws part of
     the pattern (the ladder and the circles) on the servo plant; from a synthetic photo
     of its ink, each moving joint's backlash is recovered within 15 %."""
-    from tattotronix.app.api import _robot_models
     from tattotronix.app.identify import SheetModel, calibration_plan, identify
 
     strokes = pattern_strokes()
     plan = calibration_plan(workdir=tmp_path, strokes=[strokes[4], strokes[5], strokes[6]])
-    _robot_models(plan.desc, plan.workdir)
-    model = SheetModel.of(plan.cfg, plan.workdir, plan.desc, plan._drawing())
+    model = SheetModel.of_plan(plan)
     cat = model.catalogue()
     truth = list(cat)
     for j, f in zip(model.moving_joints(), (1.4, 0.7, 1.3, 0.8), strict=False):

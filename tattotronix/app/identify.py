@@ -36,14 +36,13 @@ from tattotronix.app.servos import run_servo_loop
 from tattotronix.config.params import with_overrides
 from tattotronix.config.schema import Config
 from tattotronix.control.drawing import Drawing
-from tattotronix.control.ink import rasterise_ink
 from tattotronix.control.tracking import down_at
 from tattotronix.errors import TattotronixError
 from tattotronix.hardware.arm import calibration_from_config
 from tattotronix.hardware.calibsheet import pattern_strokes, sheet_grid
 from tattotronix.hardware.servo_model import joint_servos
 from tattotronix.kinematics import Chain
-from tattotronix.path.fidelity import InkGrid, distance_to
+from tattotronix.path.fidelity import InkGrid, below_runs, distance_to, rasterise_runs
 from tattotronix.plants.servo_plant import ServoSpec
 from tattotronix.robot.description import RobotDescription
 
@@ -105,6 +104,15 @@ class SheetModel:
         return cls(with_overrides(cfg, ["backend=servo"]), data, desc, drawing,
                    grid or sheet_grid())
 
+    @classmethod
+    def of_plan(cls, plan: Plan) -> SheetModel:
+        """The calibration drawing of ``plan`` (:func:`calibration_plan`), its models
+        written into the plan's working folder."""
+        from tattotronix.app.api import _robot_models
+
+        _robot_models(plan.desc, plan.workdir)
+        return cls.of(plan.cfg, plan.workdir, plan.desc, plan._drawing())
+
     def catalogue(self) -> tuple[ServoSpec, ...]:
         """The servos as the catalogue gives them (every imperfection the settings keep)."""
         calib = calibration_from_config(self.cfg.hardware, self.desc.joint_names)
@@ -122,9 +130,8 @@ class SheetModel:
 
     def ink(self, specs: Sequence[ServoSpec]) -> Mask:
         """The ink the servo plant draws with ``specs``, on the sheet's grid."""
-        tips = self.tips_mm(specs)[1] / 1e3
-        return rasterise_ink(tips, np.zeros(3), self.grid,
-                             float(self.cfg.toolpath.needle_width_mm))
+        return rasterise_runs(below_runs(self.tips_mm(specs)[1]), self.grid,
+                              float(self.cfg.toolpath.needle_width_mm))
 
     def moving_joints(self) -> list[int]:
         """The joints the pattern turns by :data:`_MOVES_RAD` or more."""
@@ -209,6 +216,10 @@ def identify(photo_ink: Mask, model: SheetModel, figures: Sequence[str] = DEFAUL
     catalogue = model.catalogue()
     free = [(f, j) for f in figures for j in model.moving_joints()
             if float(getattr(catalogue[j], f)) > 0]
+    if not free:
+        raise TattotronixError(f"the calibration drawing turns no joint with a "
+                               f"{' or '.join(figures)} to fit by 2 deg or more: draw the "
+                               "built-in pattern")
     to_line = _off_centreline(photo_ink, model.grid.res_mm)
     runs = 0
     marking: NDArray[np.intp] | None = None  # the steps the plan marks (fixed: the plan's)
