@@ -136,3 +136,28 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
 
 #: the tests that run the whole pipeline (minutes each)
 LONGEST = ("test_dvc_repro_on_a_clean_clone",)
+
+
+def small_pipeline(clone: Path, keep: tuple[str, ...], env: dict[str, str],
+                   artworks: tuple[str, ...] | None = None) -> None:
+    """The clone's pipeline cut to the stages ``keep`` (and, given ``artworks``, its
+    drawings to those), their code stamps re-declared, with no lock yet: the project's
+    own commands and stages, at a size that reruns in seconds or a minute.
+
+    A test of DVC's workflow on it (the lock, experiments) runs the real stages; the
+    whole pipeline's reproduction is tests/test_config.py::test_dvc_repro_on_a_clean_clone.
+    """
+    import yaml
+
+    doc = yaml.safe_load((clone / "dvc.yaml").read_text())
+    doc["stages"] = {k: v for k, v in doc["stages"].items() if k in keep}
+    doc.pop("plots", None)
+    if artworks is not None:
+        for var in doc["vars"]:
+            if isinstance(var, dict) and "artworks" in var:
+                var["artworks"] = {k: v for k, v in var["artworks"].items() if k in artworks}
+    (clone / "dvc.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
+    (clone / "dvc.lock").unlink()
+    wrote = subprocess.run([PYTHON, "-m", "tattotronix.devtools.codedeps", "--write"],
+                           cwd=clone, env=env, capture_output=True, text=True)
+    assert wrote.returncode == 0, wrote.stderr

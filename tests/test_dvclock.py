@@ -15,7 +15,7 @@ import yaml
 from tattotronix.config.dvclock import BACKUP, DamagedLockError, guard, restore
 from tattotronix.config.tracked import stage_names
 
-from .conftest import ROOT, default_signals
+from .conftest import ROOT, default_signals, small_pipeline
 
 PYTHON = sys.executable
 
@@ -118,19 +118,6 @@ def _dvc(clone: Path, *argv: str) -> subprocess.CompletedProcess[str]:
                           capture_output=True, text=True, timeout=300)
 
 
-def _small_pipeline(clone: Path, keep: tuple[str, ...]) -> None:
-    """The clone's pipeline cut to the stages ``keep`` (their stamps re-declared), with no
-    lock yet: the project's own commands, at a size that reruns in a few seconds."""
-    doc = yaml.safe_load((clone / "dvc.yaml").read_text())
-    doc["stages"] = {k: v for k, v in doc["stages"].items() if k in keep}
-    doc.pop("plots", None)
-    (clone / "dvc.yaml").write_text(yaml.safe_dump(doc, sort_keys=False))
-    (clone / "dvc.lock").unlink()
-    wrote = subprocess.run([PYTHON, "-m", "tattotronix.devtools.codedeps", "--write"],
-                           cwd=clone, env=_env(clone), capture_output=True, text=True)
-    assert wrote.returncode == 0, wrote.stderr
-
-
 @pytest.mark.slow
 def test_ctrl_c_while_dvc_writes_the_lock_leaves_it_whole_or_refused(tmp_path: Path) -> None:
     """20 tries: Ctrl-C lands while DVC rewrites dvc.lock after a stage. Each time the
@@ -138,14 +125,17 @@ def test_ctrl_c_while_dvc_writes_the_lock_leaves_it_whole_or_refused(tmp_path: P
     `python -m tattotronix.config.dvclock --check` names the fix, which mends it."""
     clone = tmp_path / "clone"
     subprocess.run(["git", "clone", "-q", str(ROOT), str(clone)], check=True)
-    _small_pipeline(clone, ("code", "config", "robot", "mass"))
+    small_pipeline(clone, ("code", "config", "robot", "mass"), _env(clone))
     first = _dvc(clone, "repro")
     assert first.returncode == 0, first.stdout[-2000:] + first.stderr[-2000:]
     stages = set(yaml.safe_load((clone / "dvc.lock").read_text())["stages"])
     assert stages == {"code", "config", "robot", "mass"}
     outcomes = {"whole": 0, "refused": 0}
     for _ in range(20):
-        assert _interrupt_while_locking(clone), "DVC never rewrote dvc.lock"
+        # on a busy machine DVC may rewrite the lock and exit between two looks: that
+        # run ended whole and is tried again (at most 5 times) to land the signal
+        assert any(_interrupt_while_locking(clone) for _ in range(5)), (
+            "DVC never rewrote dvc.lock while it was watched")
         check = subprocess.run([PYTHON, "-m", "tattotronix.config.dvclock", "--check"],
                                cwd=clone, env=_env(clone), capture_output=True, text=True)
         if check.returncode == 0:

@@ -158,29 +158,32 @@ COVERED: dict[str, tuple[str, ...]] = {
         "the same command in the project: a figure per row, a drawing per column, at most "
         "80 columns"),
     "dvc exp run -S controller.wn=120": (
-        TEST, "tests/test_config.py::test_dvc_repro_on_a_clean_clone",
-        "the same command on a clean clone after its `dvc repro`: only what depends on wn "
-        "reruns, certify records the drift; tests/test_headline.py::"
-        "test_the_readme_exp_show_fits_120_columns runs it in a small DVC project"),
+        TEST, "tests/test_config.py::test_the_readme_experiments_rerun_only_what_they_change",
+        "the same command on a clean clone (its pipeline cut to the study artwork's "
+        "drawing) after its `dvc repro`: only what depends on wn reruns, every other "
+        "stage's settings stamp is unchanged; certify records the drift in "
+        "tests/test_certify.py::test_inside_an_experiment_the_drift_is_a_metric_not_a_failure; "
+        "tests/test_headline.py::test_the_readme_exp_show_fits_120_columns runs it in a "
+        "small DVC project"),
     "dvc exp show --only-changed --drop 'Created|State|Executor|params.yaml|data/' --keep "
     "'entries|time_s|cycle|max_um|mean_um|bleed|cover|servo_mm'": (
-        TEST, "tests/test_config.py::test_dvc_repro_on_a_clean_clone",
+        TEST, "tests/test_config.py::test_the_readme_experiments_rerun_only_what_they_change",
         "the same command (read from the README) after the experiment on a clean clone: at "
         "most 120 columns, the headline of the commit and of the experiment; "
         "tests/test_headline.py::test_the_readme_exp_show_fits_120_columns runs it in a "
         "small DVC project with this project's params.yaml"),
     "dvc metrics diff --targets data/metrics/headline": (
-        TEST, "tests/test_config.py::test_dvc_repro_on_a_clean_clone",
+        TEST, "tests/test_config.py::test_the_readme_experiments_rerun_only_what_they_change",
         "the same command (read from the README) after the experiment on a clean clone: "
         "every drawing's settled mean moved"),
     "git checkout -- . && dvc checkout": (
-        TEST, "tests/test_config.py::test_dvc_repro_on_a_clean_clone",
+        TEST, "tests/test_config.py::test_the_readme_experiments_rerun_only_what_they_change",
         "the same command (read from the README) after the experiment on a clean clone; "
         "then `git status` is clean and `dvc status` up to date"),
     "dvc exp run --queue -S controller.wn=80 && dvc exp run --run-all": (
-        TEST, "tests/test_config.py::test_dvc_repro_on_a_clean_clone",
-        "the same with controller.wn=120 (DVC's run cache holds its stages from the direct "
-        "run, so none reruns), on a clean clone: the workspace stays clean and "
+        TEST, "tests/test_config.py::test_the_readme_experiments_rerun_only_what_they_change",
+        "the same with controller.wn=120, on a clean clone (its pipeline cut to the study "
+        "artwork's drawing): the workspace stays clean and "
         "`dvc exp show --csv` lists both experiments with their headline"),
     # --- CAD meshes
     "python stages/robot.py robot.cad_dir=../shared/cad/meshes": (
