@@ -12,8 +12,10 @@ the normal (tattotronix/kinematics/onsurface.py). Writes ``data/surface/<name>.n
 surface's mesh, the skin path, the joint angles, the reachability map),
 ``data/metrics/surface/<name>.json`` (its ``run`` section: the simulation) and
 ``data/figures/surface/<name>.png``, ``<name>-ink.png`` (the simulated ink against the
-artwork, in the design's chart) and ``<name>-limb.png`` (that ink carried onto the limb, in
-3-D).
+artwork, in the design's chart), ``<name>-limb.png`` (that ink carried onto the limb, in
+3-D) and ``<name>-drawing3d.gif`` (the drawing as a film: MuJoCo's offscreen renderer, the
+arm as the run moved it, the ink growing on the limb). ``viewer=true`` shows the run,
+the limb in the panel's place, in the engine's viewer where a display exists.
 """
 
 from __future__ import annotations
@@ -36,9 +38,10 @@ from tattotronix.io.npz import save_npz
 from tattotronix.io.outputs import Outputs
 from tattotronix.kinematics import Chain
 from tattotronix.kinematics.ik import ik_options
-from tattotronix.kinematics.onsurface import cone_reach
+from tattotronix.kinematics.onsurface import PointsReach, SurfaceReach, cone_reach, mesh_reach
 from tattotronix.path.inkfigure import artwork_ink_figure
-from tattotronix.report.surface import limb_ink_figure, surface_figure
+from tattotronix.report.render3d import select_gl
+from tattotronix.report.surface import limb_ink_figure, skin_drawing_video, surface_figure
 from tattotronix.robot.description import build_description
 from tattotronix.stage import run_stage
 
@@ -47,35 +50,41 @@ log = logging.getLogger("tattotronix.surface")
 
 def main(cfg: Config, out: Outputs) -> None:
     """Lay the design on the surface, solve it, map the reach; write the outputs."""
+    gl = select_gl()  # the video's OpenGL platform: before anything imports mujoco
     name = artwork_name(cfg.artwork)
     desc = build_description(cfg.robot)
     d = plan_on_surface(cfg, cfg.artwork.source, name, desc)
     run = simulate_on_surface(cfg, out.data, desc, d, name,
-                              progress=bool(cfg.draw.progress))
+                              progress=bool(cfg.draw.progress), viewer=bool(cfg.viewer))
     s = cfg.surface
-    reach = None
+    chain, depth = Chain.from_description(desc), float(cfg.toolpath.plunge_mm)
+    reach: SurfaceReach | PointsReach
     if d.surface.cone is not None:
-        reach = cone_reach(Chain.from_description(desc), d.surface.cone,
-                           float(cfg.toolpath.plunge_mm), ik_options(cfg.ik),
+        reach = cone_reach(chain, d.surface.cone, depth, ik_options(cfg.ik),
                            list(cfg.ik.seed), n_along=int(s.reach_along),
                            n_around=int(s.reach_around),
                            margin_mm=float(s.reach_margin_mm))
+    else:  # a mesh: as many of its vertices as the phantom's grid has points
+        reach = mesh_reach(chain, d.surface.vertices, d.surface.faces, depth,
+                           ik_options(cfg.ik), list(cfg.ik.seed),
+                           points=int(s.reach_along) * int(s.reach_around))
     metrics = d.summary()
     metrics["artwork_width_mm"] = (None if cfg.mask.width_mm is None
                                    else float(cfg.mask.width_mm))
-    reach_figures = None if reach is None else reach.summary()
-    if reach_figures is not None:
-        metrics["reach"] = reach_figures
+    reach_figures = reach.summary()
+    metrics["reach"] = reach_figures
     ran = run.summary()
     metrics["run"] = {"backend": cfg.backend.name, **ran}
     arrays: dict[str, ArrayLike] = {
         "vertices_mm": d.surface.vertices, "faces": d.surface.faces,
         "xyz_mm": d.skin.xyz_mm, "axis": d.skin.axis, "kind": d.skin.kind,
         "uvz_mm": d.skin.uvz_mm, "q": d.ik.q, "tilt_deg": d.tilt_deg}
-    if reach is not None:
-        arrays.update(reach_along_mm=reach.along_mm, reach_around_deg=reach.around_deg,
-                      reachable=reach.reachable, reach_tilt_deg=reach.tilt_deg,
-                      reach_cond=reach.cond)
+    if isinstance(reach, SurfaceReach):
+        arrays.update(reach_along_mm=reach.along_mm, reach_around_deg=reach.around_deg)
+    else:
+        arrays.update(reach_xyz_m=reach.xyz_m, reach_normal=reach.normal)
+    arrays.update(reachable=reach.reachable, reach_tilt_deg=reach.tilt_deg,
+                  reach_cond=reach.cond)
     arrays[PROVENANCE_KEY] = np.array(out.provenance(cfg, {}))
     save_npz(out.tmp_path(out.path("surface", f"{name}.npz")), arrays)
     out.write_json(out.path("metrics", "surface", f"{name}.json"), metrics)
@@ -92,14 +101,20 @@ def main(cfg: Config, out: Outputs) -> None:
         d, run, out.tmp_path(out.path("figures", "surface", f"{name}-limb.png")),
         f"{name} on the {d.surface.kind} ({cfg.backend.name}): the simulated ink on the "
         f"limb ({run.ink.text()})")
+    video = skin_drawing_video(
+        d, run, desc, out.require(out.input("robot", f"{desc.name}.urdf"), "robot"),
+        out.require(out.input("robot", f"{desc.name}.xml"), "robot"), name,
+        out.tmp_path(out.path("figures", "surface", f"{name}-drawing3d.gif")))
+    log.info("surface %s: the 3-D film (MuJoCo, MUJOCO_GL=%s): %d frames, %.1f s", name,
+             gl or "its default", video.frames, video.wall_s)
     dist = d.distortion
     log.info("surface %s: %d points, distortion area %.4f %% angle %.4f %%, IK %s %%, "
              "tilt worst %.2e deg, needle %s deg from vertical%s", name,
              len(d.skin.kind), 100 * dist.area_worst, 100 * dist.angle_worst,
              metrics["ik_converged_pct"], float(np.max(d.tilt_deg)),
              metrics["needle_from_vertical_deg"],
-             f"; the phantom {reach_figures['reachable_pct']} % reachable"
-             if reach_figures is not None else "")
+             f"; {reach_figures['reachable_pct']} % of the "
+             f"{'phantom' if d.surface.cone is not None else 'mesh'} reachable")
     log.info("surface %s on %s: %s; marking max %s, settled mean %s; ink %s", name,
              cfg.backend.name, ran["verdict"], length_text(_um(ran["marking_max_um"])),
              length_text(_um(ran["settled_mean_um"])), run.ink.text())

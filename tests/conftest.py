@@ -135,7 +135,8 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
 
 
 #: the tests that run the whole pipeline (minutes each)
-LONGEST = ("test_dvc_repro_on_a_clean_clone",)
+LONGEST = ("test_dvc_repro_on_a_clean_clone",
+           "test_the_readme_experiments_rerun_only_what_they_change")
 
 
 def small_pipeline(clone: Path, keep: tuple[str, ...], env: dict[str, str],

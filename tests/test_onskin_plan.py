@@ -148,6 +148,49 @@ def test_the_stage_writes_its_outputs(tmp_path: Path, draw_data: Path) -> None:
     assert arrays["q"].shape == (metrics["points"], 5)
     assert arrays["reachable"].shape == (4, 8)
     assert (tmp_path / "figures" / "surface" / "emblem-forearm.png").stat().st_size > 10_000
+    # the drawing as a 3-D film: the limb in the panel's place, the ink growing on it
+    with Image.open(tmp_path / "figures" / "surface" / "emblem-forearm-drawing3d.gif") as im:
+        assert im.n_frames > 100 and im.size == (640, 480)
+        im.seek(0)
+        first = np.asarray(im.convert("RGB"), dtype=int)
+        im.seek(im.n_frames - 1)
+        last = np.asarray(im.convert("RGB"), dtype=int)
+    skin = (last[..., 0] > 180) & (last[..., 0] > last[..., 2] + 25)  # the limb's pink
+    assert skin.sum() > 2000  # the limb is in the scene
+    inked = (first.sum(axis=2) - last.sum(axis=2)) > 90  # darker at the end than at first
+    assert inked.sum() > 100
+
+
+def test_a_scanned_limb_gets_its_own_reach_map(tmp_path: Path, draw_data: Path) -> None:
+    """On a mesh the reach map is over its vertices (as many as the phantom's grid, spread
+    evenly): the stage writes it in the metrics, the npz and the figure."""
+    v, f = phantom_mesh(PHANTOM)
+    file = _stl(tmp_path / "arm.stl", v, f)
+    top = PHANTOM.point(np.array([150.0]), np.radians([90.0]))[0]
+    out = tmp_path / "out"
+    run = subprocess.run(
+        [sys.executable, str(ROOT / "stages" / "surface.py"), "artwork.name=scan",
+         "artwork.source=emblem", "surface=mesh", f"surface.mesh_file={file}",
+         f"surface.mesh_at_mm=[{top[0]},{top[1]},{top[2]}]", "mask.width_mm=40",
+         "surface.max_distortion_pct=5", "surface.reach_along=4", "surface.reach_around=8",
+         "draw.progress=false", f"paths.data={draw_data}", f"paths.out={out}"],
+        cwd=tmp_path, env={**os.environ, "MPLBACKEND": "Agg"}, capture_output=True,
+        text=True)
+    assert run.returncode == 0, run.stdout[-2000:] + run.stderr[-2000:]
+    metrics = json.loads((out / "metrics" / "surface" / "scan.json").read_text())
+    reach = metrics["reach"]
+    assert reach["points"] == 32 and 0 < reach["reachable_pct"] < 100, reach
+    assert reach["tilt_worst_deg"] < 1e-3
+    arrays = np.load(out / "surface" / "scan.npz")
+    assert arrays["reach_xyz_m"].shape == (32, 3) and arrays["reachable"].shape == (32,)
+    # every tested tip is a vertex of the mesh, the marking depth in along its normal
+    n = arrays["reach_normal"]
+    np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-9)
+    on = arrays["reach_xyz_m"] * 1000.0 + 1.5 * n
+    from scipy.spatial import cKDTree
+    gap, _ = cKDTree(arrays["vertices_mm"]).query(on)
+    assert gap.max() < 1e-6
+    assert (out / "figures" / "surface" / "scan.png").stat().st_size > 10_000
 
 
 def test_the_skin_drawing_is_simulated_on_plants_only(across: SkinDrawing,

@@ -128,6 +128,81 @@ def test_the_ink_grows_on_the_panel(gl: str, clip: DrawingClip,
     assert abs(cols.mean() - centre[0]) < 4 and abs(rows.mean() - centre[1]) < 4
 
 
+def _cylinder(radius_m: float, z_axis_m: float, n_around: int = 48,
+              x_m: tuple[float, float] = (0.15, 0.27)) -> tuple[np.ndarray, np.ndarray]:
+    """A closed-round tube along x (the tiny circle's panel under it), its vertices (m)
+    and outward-wound triangles."""
+    th = np.linspace(-np.pi, np.pi, n_around, endpoint=False)
+    xs = np.linspace(*x_m, 13)
+    ring = np.column_stack([np.sin(th), np.cos(th)]) * radius_m  # y, z about the axis
+    v = np.array([[x, y, z + z_axis_m] for x in xs for y, z in ring])
+    faces = []
+    for i in range(len(xs) - 1):
+        for j in range(n_around):
+            a, b = i * n_around + j, i * n_around + (j + 1) % n_around
+            c, d = a + n_around, b + n_around
+            faces += [[a, c, b], [b, c, d]]
+    return v, np.array(faces, dtype=np.int64)
+
+
+def test_the_ink_grows_on_a_limb_in_the_panels_place(gl: str, clip: DrawingClip,
+                                                    models: tuple[Path, Path]) -> None:
+    """The skin's canvas: a wide tube whose top is the panel's surface under the tiny circle,
+    charted by unrolling it (u along it, v around it from the top, mm); the ink shows on
+    it where the camera puts the circle, grows, and no face across the tube's seam (its
+    underside, off the chart) takes the design."""
+    from tattotronix.plants import Workpiece
+    from tattotronix.plants.mujoco_plant import WORKPIECE
+    from tattotronix.report.render3d import SkinInk
+
+    radius = 0.1  # flat enough that the whole circle is in it
+    axis_z = PANEL_ORIGIN[2] - radius
+    verts, faces = _cylinder(radius, axis_z, n_around=360, x_m=(0.19, 0.23))
+    chart = lambda p: np.column_stack([  # noqa: E731  (arm m -> design mm, height mm)
+        p[:, 0] * 1e3, radius * 1e3 * np.arctan2(p[:, 1], p[:, 2] - axis_z),
+        (np.hypot(p[:, 1], p[:, 2] - axis_z) - radius) * 1e3])
+    uv = chart(verts)[:, :2]
+    tips = chart(clip.tip_m)
+    box = (tips[:, 0].min() - 4, tips[:, 1].min() - 4, tips[:, 0].max() + 4,
+           tips[:, 1].max() + 4)
+    uv[np.abs(uv[:, 1]) > 0.9 * np.pi * radius * 1e3] = np.nan  # off the chart: the seam
+    skin = SkinInk(Workpiece(verts, faces), uv, tips, box, 0.1)
+    size = (2 * SIZE[0], 2 * SIZE[1])  # the tiny circle a few pixels more across
+    scene = DrawingScene(clip, models[1], size, skin=skin)
+    try:
+        m = scene.model
+        names = [m.geom(i).name for i in range(m.ngeom)]
+        assert WORKPIECE in names and "panel" not in names
+        mesh = m.geom_dataid[names.index(WORKPIECE)]
+        fadr, fnum = m.mesh_faceadr[mesh], m.mesh_facenum[mesh]
+        face_tc = m.mesh_facetexcoord[fadr:fadr + fnum]
+        bare = face_tc.max()  # the one extra coordinate: a texel of bare skin
+        inside = ((uv[:, 0] >= box[0]) & (uv[:, 0] <= box[2]) & (uv[:, 1] >= box[1])
+                  & (uv[:, 1] <= box[3]))
+        off = ~inside[faces].all(axis=1)
+        assert off.any() and (~off).any()
+        np.testing.assert_array_equal(np.all(face_tc == bare, axis=1), off)
+        m.geom_group[m.geom_bodyid > 0] = 5  # the arm out of the way, and its tip's site
+        scene.option.geomgroup[5] = 0
+        scene.option.sitegroup[:] = 0
+        blank = scene.render(0, captions=False).copy()
+        mid = scene.render(len(clip.t) // 2, captions=False).copy()
+        last = scene.render(len(clip.t) - 1, captions=False).copy()
+    finally:
+        scene.close()
+    # darker than the bare skin (the ink's blue, half blended into a pink skin, is no
+    # bluer than red: _ink's hue test is the panel's)
+    ink = [(blank.astype(int).sum(axis=2) - f.astype(int).sum(axis=2)) > 60
+           for f in (mid, last)]
+    assert 0 < ink[0].sum() < ink[1].sum(), [int(i.sum()) for i in ink]
+    assert not (ink[0] & ~ink[1]).any()  # it only grows
+    rows, cols = np.nonzero(ink[1])
+    down = clip.tip_m[tips[:, 2] < 0]
+    centre = scene.camera.project(down.mean(axis=0)[None], float(m.vis.global_.fovy),
+                                  size)[0]
+    assert abs(cols.mean() - centre[0]) < 4 and abs(rows.mean() - centre[1]) < 4
+
+
 def test_the_3d_video_has_the_clip_s_frames(gl: str, tiny_clip: Callable[..., DrawingClip],
                                             models: tuple[Path, Path], tmp_path: Path) -> None:
     short = tiny_clip(video_s=2.0, fps=10.0)  # the 4 s drawing in 2 s

@@ -61,6 +61,7 @@ from tattotronix.path.kinds import MARK
 from tattotronix.path.onskin import SkinPath, carry_path
 from tattotronix.path.plan import Toolpath
 from tattotronix.plants import BACKENDS as PLANTS
+from tattotronix.plants import Workpiece
 from tattotronix.robot.description import RobotDescription
 from tattotronix.surface.chart import Chart, Distortion, distortion
 from tattotronix.surface.setup import WorkSurface, work_surface
@@ -280,9 +281,11 @@ def _in_chart(d: SkinDrawing, tips_mm: Array) -> Array:
 
 
 def simulate_on_surface(cfg: Config, data: Path, desc: RobotDescription, d: SkinDrawing,
-                        name: str, *, progress: bool = False) -> SkinRun:
-    """Play ``d`` closed loop on ``cfg.backend`` (a simulated plant) and score its tracking
-    and its ink on the skin (module docstring).
+                        name: str, *, progress: bool = False, viewer: bool = False
+                        ) -> SkinRun:
+    """Play ``d`` closed loop on ``cfg.backend`` (a simulated plant), the limb in the
+    plant in the panel's place, and score its tracking and its ink on the skin (module
+    docstring). ``viewer``: watch it in the engine's viewer, where a display exists.
 
     Raises:
         TattotronixError: a backend that is not a simulated plant (the servo plant and the
@@ -297,7 +300,10 @@ def simulate_on_surface(cfg: Config, data: Path, desc: RobotDescription, d: Skin
     drawing = Drawing(name=name, t=np.asarray(traj.t), q=np.asarray(traj.q),
                       qd=np.asarray(traj.qd), kind=np.asarray(traj.kind, dtype=np.int8),
                       origin="planned")
-    loop = run_closed_loop(cfg, data, desc, drawing, progress=progress)
+    # the limb in the panel's place, in the plant (its viewer) as in the collision check
+    limb = Workpiece(d.surface.vertices / 1000.0, d.surface.faces)
+    loop = run_closed_loop(cfg, data, desc, drawing, progress=progress, viewer=viewer,
+                           workpiece=limb)
     chain = Chain.from_description(desc)
     run = loop.run
     k = len(run.t)

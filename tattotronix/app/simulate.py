@@ -21,7 +21,7 @@ from tattotronix.control.reference import reference_at_ticks, resolve_window
 from tattotronix.control.simulate import Loop, simulate, substeps_per_tick
 from tattotronix.control.verdict import Tolerance
 from tattotronix.errors import StageInputMissing, TattotronixError
-from tattotronix.plants import PlantSettings, make_plant
+from tattotronix.plants import PlantSettings, Workpiece, make_plant
 from tattotronix.robot.description import RobotDescription
 
 __all__ = ["run_closed_loop"]
@@ -32,7 +32,7 @@ log = logging.getLogger("tattotronix.draw")
 def run_closed_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Drawing, *,
                     window: object = None, plant_dt_s: float | None = None,
                     progress: bool = False, viewer: bool = False,
-                    loop: Loop = "auto") -> ClosedLoop:
+                    loop: Loop = "auto", workpiece: Workpiece | None = None) -> ClosedLoop:
     """Run ``drawing`` closed loop on the configured backend and controller.
 
     Args:
@@ -47,6 +47,8 @@ def run_closed_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Dr
         viewer: watch the run where a display exists.
         loop: which path runs the controller (:func:`~tattotronix.control.simulate.simulate`;
             ``auto``: the engine wherever it can).
+        workpiece: what the needle draws on in the panel's place (a limb): shown by the
+            plant, never collided with.
 
     Raises:
         TattotronixError: missing models, a bad rate, tuning pose or window.
@@ -92,7 +94,7 @@ def run_closed_loop(cfg: Config, data: Path, desc: RobotDescription, drawing: Dr
     try:
         with make_plant(backend, settings, urdf=urdf, mjcf=mjcf,
                         joint_names=desc.joint_names, lower=desc.lower, upper=desc.upper,
-                        viewer=viewer) as plant:
+                        viewer=viewer, workpiece=workpiece) as plant:
             run = simulate(plant, controller, ref, sample_every=sample_every,
                            abort_error_rad=float(cfg.plant.abort_error_rad), progress=bar,
                            viewer=viewer, loop=loop)

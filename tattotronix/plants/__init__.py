@@ -8,7 +8,7 @@ friction unless ``plant.damping`` is set, and the panel never resists the needle
 
 from __future__ import annotations
 
-from tattotronix.plants.base import Plant, PlantSettings
+from tattotronix.plants.base import Plant, PlantSettings, Workpiece
 from tattotronix.plants.factory import BACKENDS, make_plant
 
-__all__ = ["BACKENDS", "Plant", "PlantSettings", "make_plant"]
+__all__ = ["BACKENDS", "Plant", "PlantSettings", "Workpiece", "make_plant"]

@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 from tattotronix.config.schema import PlantConfig
 from tattotronix.errors import TattotronixError
 
-__all__ = ["EnginePid", "PidSpec", "Plant", "PlantSettings", "has_display"]
+__all__ = ["EnginePid", "PidSpec", "Plant", "PlantSettings", "Workpiece", "has_display"]
 
 Array = NDArray[np.float64]
 
@@ -52,6 +52,33 @@ class PlantSettings:
         if not (np.isfinite(s.damping) and s.damping >= 0):
             raise TattotronixError(f"plant.damping={s.damping}: give a damping >= 0 N m s/rad")
         return s
+
+
+@dataclass(frozen=True)
+class Workpiece:
+    """What the needle draws on in the panel's place (a limb, a scanned surface): a
+    triangle mesh in the arm's base frame. Every plant shows it and none collides with it,
+    as with the panel (the needle enters it); the ink is scored from the tip against the
+    surface itself, not by the engine.
+
+    Attributes:
+        vertices_m: (V, 3) m.
+        faces: (F, 3) vertex indices, wound outward.
+        rgba: its colour.
+    """
+
+    vertices_m: Array
+    faces: NDArray[np.int64]
+    rgba: tuple[float, float, float, float] = (0.93, 0.80, 0.69, 1.0)
+
+    def __post_init__(self) -> None:
+        v, f = np.asarray(self.vertices_m), np.asarray(self.faces)
+        if (v.ndim != 2 or v.shape[1] != 3 or len(v) < 3 or not np.all(np.isfinite(v))
+                or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0
+                or f.min() < 0 or f.max() >= len(v)):
+            raise TattotronixError(
+                f"a workpiece needs (V, 3) finite vertices and (F, 3) faces indexing them, "
+                f"got {v.shape} and {f.shape}")
 
 
 @dataclass(frozen=True)

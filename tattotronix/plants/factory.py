@@ -9,7 +9,7 @@ from pathlib import Path
 from numpy.typing import ArrayLike
 
 from tattotronix.errors import TattotronixError
-from tattotronix.plants.base import Plant, PlantSettings
+from tattotronix.plants.base import Plant, PlantSettings, Workpiece
 
 __all__ = ["BACKENDS", "make_plant"]
 
@@ -23,6 +23,7 @@ class _Models:
     lower: ArrayLike
     upper: ArrayLike
     viewer: bool
+    workpiece: Workpiece | None = None
 
 
 def _model(m: _Models, settings: PlantSettings) -> Plant:
@@ -34,13 +35,13 @@ def _model(m: _Models, settings: PlantSettings) -> Plant:
 def _mujoco(m: _Models, settings: PlantSettings) -> Plant:
     from tattotronix.plants.mujoco_plant import MujocoPlant
 
-    return MujocoPlant(m.mjcf, settings, viewer=m.viewer)
+    return MujocoPlant(m.mjcf, settings, viewer=m.viewer, workpiece=m.workpiece)
 
 
 def _pybullet(m: _Models, settings: PlantSettings) -> Plant:
     from tattotronix.plants.pybullet_plant import PybulletPlant
 
-    return PybulletPlant(m.urdf, settings, viewer=m.viewer)
+    return PybulletPlant(m.urdf, settings, viewer=m.viewer, workpiece=m.workpiece)
 
 
 #: backend name -> builder (the engine is imported only when its backend is asked for).
@@ -57,7 +58,7 @@ BACKENDS = tuple(_BUILDERS)
 
 def make_plant(backend: str, settings: PlantSettings, *, urdf: Path, mjcf: Path,
                joint_names: Sequence[str], lower: ArrayLike, upper: ArrayLike,
-               viewer: bool = False) -> Plant:
+               viewer: bool = False, workpiece: Workpiece | None = None) -> Plant:
     """Build a plant from the generated models.
 
     Args:
@@ -67,6 +68,9 @@ def make_plant(backend: str, settings: PlantSettings, *, urdf: Path, mjcf: Path,
         joint_names: the joints, base outward (checked against each model).
         lower, upper: joint limits, rad (the model plant's clamp).
         viewer: open the engine's viewer (needs a display; MuJoCo and PyBullet).
+        workpiece: what the needle draws on in the panel's place (a limb), shown by
+            MuJoCo and PyBullet, in the viewer and the renderings, and never collided
+            with; the model plant has no geometry to show it in.
 
     Raises:
         TattotronixError: an unknown backend, or a setting the backend cannot honour.
@@ -76,7 +80,7 @@ def make_plant(backend: str, settings: PlantSettings, *, urdf: Path, mjcf: Path,
     if build is None:
         raise TattotronixError(f"unknown backend '{name}': use one of {', '.join(BACKENDS)} "
                                "(the real arm is backend=arm)")
-    plant = build(_Models(urdf, mjcf, lower, upper, viewer), settings)
+    plant = build(_Models(urdf, mjcf, lower, upper, viewer, workpiece), settings)
     got = tuple(getattr(plant, "joint_names", ()))
     if got != tuple(joint_names):
         plant.close()

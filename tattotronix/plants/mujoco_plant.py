@@ -26,11 +26,12 @@ from tattotronix.plants.base import (
     PidSpec,
     Plant,
     PlantSettings,
+    Workpiece,
     has_display,
 )
 from tattotronix.robot.loaders import load_mujoco, load_mujoco_spec
 
-__all__ = ["MujocoPlant"]
+__all__ = ["WORKPIECE", "MujocoPlant", "MujocoPid", "with_workpiece"]
 
 
 class MujocoPlant(Plant):
@@ -38,17 +39,22 @@ class MujocoPlant(Plant):
 
     ``plant.contacts=false`` (default) switches contacts off; the panel never collides
     either way. ``plant.joint_limits=false`` (default) lifts the joint ranges, as in the
-    model plant. ``plant.damping`` sets every joint's viscous damping.
+    model plant. ``plant.damping`` sets every joint's viscous damping. A ``workpiece``
+    takes the panel's place (:func:`with_workpiece`).
     """
 
     backend = "mujoco"
 
-    def __init__(self, mjcf: Path, settings: PlantSettings, *, viewer: bool = False):
+    def __init__(self, mjcf: Path, settings: PlantSettings, *, viewer: bool = False,
+                 workpiece: Workpiece | None = None):
         import mujoco
 
         self._mj = mujoco
         self._mjcf = Path(mjcf)
-        m = load_mujoco(mjcf)  # a missing or corrupt file: named, with the stage to re-run
+        self._workpiece = workpiece
+        # a missing or corrupt file: named, with the stage to re-run
+        m = (load_mujoco(mjcf) if workpiece is None
+             else with_workpiece(load_mujoco_spec(mjcf), workpiece).compile())
         _apply_settings(m, settings)
         self.model = m
         self.data = mujoco.MjData(m)
@@ -92,7 +98,7 @@ class MujocoPlant(Plant):
         self._mj.mj_step(self.model, self.data, n)
 
     def engine_pid(self, pid: PidSpec) -> EnginePid | None:
-        return MujocoPid(self._mjcf, self.settings, pid)
+        return MujocoPid(self._mjcf, self.settings, pid, workpiece=self._workpiece)
 
     def tip_pose(self) -> tuple[Array, Array]:
         self._mj.mj_kinematics(self.model, self.data)
@@ -117,6 +123,29 @@ class MujocoPlant(Plant):
         if self._viewer is not None:
             self._viewer.close()
             self._viewer = None
+
+
+#: the name of the workpiece's mesh and geom in the model
+WORKPIECE = "workpiece"
+
+
+def with_workpiece(spec: Any, workpiece: Workpiece) -> Any:
+    """The MJCF's spec (``mujoco.MjSpec``) with ``workpiece`` in the panel's place: a mesh
+    geom on the world body that collides with nothing (as the panel), its inertia taken as
+    a shell (a scanned surface need not be closed; a world geom adds no mass anyway)."""
+    import mujoco
+
+    panel = next((g for g in spec.geoms if g.name == "panel"), None)
+    if panel is not None:
+        spec.delete(panel)
+    mesh = spec.add_mesh(name=WORKPIECE)
+    mesh.uservert = np.asarray(workpiece.vertices_m, dtype=np.float64).ravel().tolist()
+    mesh.userface = np.asarray(workpiece.faces, dtype=np.int64).ravel().tolist()
+    mesh.inertia = mujoco.mjtMeshInertia.mjMESH_INERTIA_SHELL
+    spec.worldbody.add_geom(name=WORKPIECE, type=mujoco.mjtGeom.mjGEOM_MESH,
+                            meshname=WORKPIECE, contype=0, conaffinity=0,
+                            rgba=list(workpiece.rgba))
+    return spec
 
 
 def _apply_settings(m: Any, settings: PlantSettings) -> None:
@@ -148,15 +177,19 @@ class MujocoPid(EnginePid):
         mjcf: the generated MJCF.
         settings: the plant settings (as the torque plant's).
         pid: the gains, the torque limit and whether gravity is compensated.
+        workpiece: in the panel's place, as the torque plant's.
     """
 
-    def __init__(self, mjcf: Path, settings: PlantSettings, pid: PidSpec):
+    def __init__(self, mjcf: Path, settings: PlantSettings, pid: PidSpec, *,
+                 workpiece: Workpiece | None = None):
         import mujoco
         from mujoco import rollout
 
         self._mj = mujoco
         self._rollout = rollout
         spec = load_mujoco_spec(mjcf)
+        if workpiece is not None:
+            with_workpiece(spec, workpiece)
         joints = [a.target for a in spec.actuators]
         # the motors clamp at their control range too: the tighter of the two holds
         motor = [float(np.min(np.abs(a.ctrlrange))) if a.ctrllimited else np.inf

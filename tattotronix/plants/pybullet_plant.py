@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike
 
-from tattotronix.plants.base import Array, Plant, PlantSettings, has_display
+from tattotronix.plants.base import Array, Plant, PlantSettings, Workpiece, has_display
 from tattotronix.robot.loaders import load_pybullet
 
 __all__ = ["PybulletPlant"]
@@ -22,12 +22,14 @@ class PybulletPlant(Plant):
     The default velocity motors are switched off (zero force), so the joints take only
     the applied torque; link damping is zero (PyBullet's default is 0.04), joint damping
     is ``plant.damping``. Without ``plant.joint_limits`` the ranges are lifted; with
-    ``plant.contacts`` a bench box is added (the arm's own links never collide).
+    ``plant.contacts`` a bench box is added (the arm's own links never collide). A
+    ``workpiece`` (a limb in the panel's place) is a visual mesh with no collision shape.
     """
 
     backend = "pybullet"
 
-    def __init__(self, urdf: Path, settings: PlantSettings, *, viewer: bool = False):
+    def __init__(self, urdf: Path, settings: PlantSettings, *, viewer: bool = False,
+                 workpiece: Workpiece | None = None):
         from tattotronix.robot.loaders import import_pybullet
 
         p = import_pybullet()
@@ -68,6 +70,7 @@ class PybulletPlant(Plant):
                                     forces=[0.0] * len(idx), physicsClientId=cid)
         if settings.contacts:
             self._add_bench()
+        self.workpiece_body = None if workpiece is None else self._add_workpiece(workpiece)
         self._tau = [0.0] * self.n
         self._t = 0.0
         self._wall0 = 0.0
@@ -77,6 +80,14 @@ class PybulletPlant(Plant):
         half = [0.35, 0.25, 0.375]
         shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=cid)
         p.createMultiBody(0.0, shape, basePosition=[0, 0, -half[2]], physicsClientId=cid)
+
+    def _add_workpiece(self, w: Workpiece) -> int:
+        p, cid = self._p, self.client
+        shape = p.createVisualShape(
+            p.GEOM_MESH, vertices=np.asarray(w.vertices_m, dtype=np.float64).tolist(),
+            indices=np.asarray(w.faces, dtype=np.int64).ravel().tolist(),
+            rgbaColor=list(w.rgba), physicsClientId=cid)
+        return int(p.createMultiBody(0.0, -1, shape, physicsClientId=cid))
 
     def _read(self) -> None:
         states = self._p.getJointStates(self.body, self._idx, physicsClientId=self.client)

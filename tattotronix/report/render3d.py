@@ -14,7 +14,10 @@ when the robot stage had them).
 The ink is a texture on the panel: a raster of the panel's top face (about one and a half
 texels to a pixel where the panel is nearest), into which the tip's path is drawn, with
 OpenCV, wherever the tip is below the panel surface (as in the 2-D animation), and which
-is uploaded again when it has grown.
+is uploaded again when it has grown. On a curved surface (:class:`SkinInk`) the limb's
+mesh takes the panel's place and the raster is the design's own plane, mapped onto the
+mesh by each vertex's point in the design's chart; the ink is drawn where the tip is in
+the skin along its normal.
 
 OpenGL: :func:`select_gl` chooses the platform for the whole process before MuJoCo is
 imported (``MUJOCO_GL``: honoured when set; otherwise EGL, else OSMesa, whichever first
@@ -25,6 +28,7 @@ from __future__ import annotations
 
 import functools
 import logging
+import math
 import os
 import subprocess
 import sys
@@ -38,6 +42,8 @@ from numpy.typing import NDArray
 
 from tattotronix.errors import TattotronixError
 from tattotronix.io.workers import usable_cores, worker_signals
+from tattotronix.plants.base import Workpiece
+from tattotronix.plants.mujoco_plant import WORKPIECE, with_workpiece
 from tattotronix.plotting import pin_fonts
 from tattotronix.report.animation import (
     INK_RGB,
@@ -54,6 +60,7 @@ __all__ = [
     "SIZE_PX",
     "Camera",
     "DrawingScene",
+    "SkinInk",
     "arm_camera",
     "render_drawing_3d",
     "render_drawing_both",
@@ -242,6 +249,129 @@ def _geom_boxes(model: Any, data: Any, geoms: NDArray[np.intp]) -> Array:
     return world.reshape(-1, 3)
 
 
+@dataclass(frozen=True)
+class SkinInk:
+    """The ink's canvas on a curved surface: the limb in the panel's place, and the
+    design's plane as the texture (about its placement point, mm).
+
+    Attributes:
+        limb: the limb's mesh (arm frame, m).
+        vertex_uv_mm: (V, 2) each vertex's point in the design's chart (NaN where the
+            chart does not reach it).
+        tip_uvz_mm: (S, 3) each tip sample of the clip (``clip.tip_t``) in the chart:
+            design point and height over the skin along its normal (negative: in it).
+        box_mm: ``(u0, v0, u1, v1)`` the raster's extent in the design plane (the design
+            and a margin of bare skin around it).
+        res_mm: the raster's finest texel, mm: coarser where the camera sees fewer than
+            :data:`TEXELS_PER_PX` of them to a pixel at the ink (the ink is drawn one texel
+            wide), or where the box would pass :data:`MAX_TEXELS`.
+    """
+
+    limb: Workpiece
+    vertex_uv_mm: Array
+    tip_uvz_mm: Array
+    box_mm: tuple[float, float, float, float]
+    res_mm: float
+
+
+@dataclass(frozen=True)
+class _Canvas:
+    """Where the ink is drawn: the texture's size and bare colour, each tip sample's texel
+    (4-bit fixed point) and whether it is in the work, the geom the camera frames, and
+    how the foot caption names the surface."""
+
+    size: tuple[int, int]  # texels (width, height)
+    base: NDArray[np.uint8]
+    px: NDArray[np.int32]
+    below: NDArray[np.bool_]
+    depth: Array  # (S,) height over the surface at each tip sample (m or mm: sign only)
+    surface: str
+
+
+def _panel_canvas(spec: Any, plain: Any, camera: Camera, size_px: tuple[int, int],
+                  clip: DrawingClip) -> _Canvas:
+    """The panel's top face as the canvas: TEXELS_PER_PX texels to a pixel where the panel
+    is nearest; the panel's colour goes into the texture, the geom's is white."""
+
+    panel = spec.geom("panel")
+    half = np.asarray(panel.size, dtype=np.float64)  # box half-sizes, m
+    centre = np.asarray(panel.pos, dtype=np.float64)
+    lo, span = centre[:2] - half[:2], 2 * half[:2]
+    top = centre[2] + half[2]
+    corners = np.array([[x, y, top] for y in (lo[1] + span[1], lo[1])
+                        for x in (lo[0], lo[0] + span[0])])
+    px = camera.project(corners, float(plain.vis.global_.fovy), size_px)
+    along_x = np.linalg.norm(px[[1, 3]] - px[[0, 2]], axis=1).max()
+    along_y = np.linalg.norm(px[[2, 3]] - px[[0, 1]], axis=1).max()
+    tw, th = (int(np.clip(round(TEXELS_PER_PX * e), 64, MAX_TEXELS))
+              for e in (along_x, along_y))
+    base = np.clip(np.asarray(panel.rgba[:3]) * 255, 0, 255).astype(np.uint8)
+    # a 2-D texture covers each face of a box once: row 0 along the face's +y edge,
+    # column 0 along its -x edge (an image of the panel seen from above)
+    _ink_material(spec, tw, th, base)
+    panel.material = _INK_TEXTURE
+    panel.rgba = [1.0, 1.0, 1.0, 1.0]
+    col = (clip.tip_m[:, 0] - lo[0]) / span[0] * tw
+    row = (lo[1] + span[1] - clip.tip_m[:, 1]) / span[1] * th
+    depth = clip.tip_m[:, 2] - clip.panel_origin_m[2]
+    return _Canvas((tw, th), base, np.rint(np.column_stack([col, row]) * 16).astype(np.int32),
+                   depth < 0.0, depth, "the panel surface")
+
+
+def _skin_canvas(spec: Any, skin: SkinInk, plain: Any, camera: Camera,
+                 size_px: tuple[int, int], clip: DrawingClip) -> _Canvas:
+    """The design's plane as the canvas, mapped onto the limb's mesh: each face whose
+    three vertices lie in the raster takes their chart points as texture coordinates;
+    every other face takes one bare texel of the margin (a face across the cylinder's
+    seam would otherwise stretch the whole design over the back of the limb)."""
+
+    u0, v0, u1, v1 = skin.box_mm
+    if not (u1 > u0 and v1 > v0 and skin.res_mm > 0):
+        raise TattotronixError(f"the skin's ink raster {skin.box_mm} at {skin.res_mm} mm "
+                               "is empty")
+    # pixels to a mm where the ink is (the middle of the tips in the skin), either way
+    tip = np.asarray(skin.tip_uvz_mm, dtype=np.float64)
+    inside = tip[:, 2] < 0.0
+    at = np.mean(clip.tip_m[inside] if inside.any() else clip.tip_m, axis=0)
+    px = camera.project(np.vstack([at, at + [1e-3, 0, 0], at + [0, 1e-3, 0]]),
+                        float(plain.vis.global_.fovy), size_px)
+    px_per_mm = float(np.linalg.norm(px[1:] - px[0], axis=1).max())
+    res = max(float(skin.res_mm), 1.0 / (TEXELS_PER_PX * max(px_per_mm, 1e-9)),
+              (u1 - u0) / MAX_TEXELS, (v1 - v0) / MAX_TEXELS)
+    tw, th = int(math.ceil((u1 - u0) / res)), int(math.ceil((v1 - v0) / res))
+    base = np.clip(np.asarray(skin.limb.rgba[:3]) * 255, 0, 255).astype(np.uint8)
+    _ink_material(spec, tw, th, base)
+    geom = spec.geom(WORKPIECE)
+    geom.material = _INK_TEXTURE
+    geom.rgba = [1.0, 1.0, 1.0, 1.0]
+    uv = np.asarray(skin.vertex_uv_mm, dtype=np.float64)
+    inside = (np.all(np.isfinite(uv), axis=1) & (uv[:, 0] >= u0) & (uv[:, 0] <= u1)
+              & (uv[:, 1] >= v0) & (uv[:, 1] <= v1))
+    st = np.column_stack([(np.nan_to_num(uv[:, 0]) - u0) / (u1 - u0),
+                          (v1 - np.nan_to_num(uv[:, 1])) / (v1 - v0)])  # t: rows down
+    bare = len(st)  # one more coordinate: the margin's first texel
+    faces = np.asarray(skin.limb.faces, dtype=np.int64)
+    face_st = np.where(inside[faces].all(axis=1)[:, None], faces, bare)
+    mesh = spec.mesh(WORKPIECE)
+    mesh.usertexcoord = np.vstack([st, [[0.5 / tw, 0.5 / th]]]).ravel().tolist()
+    mesh.userfacetexcoord = face_st.ravel().tolist()
+    col = (tip[:, 0] - u0) / res
+    row = (v1 - tip[:, 1]) / res
+    return _Canvas((tw, th), base, np.rint(np.column_stack([col, row]) * 16).astype(np.int32),
+                   tip[:, 2] < 0.0, tip[:, 2], "the skin")
+
+
+def _ink_material(spec: Any, tw: int, th: int, base: NDArray[np.uint8]) -> None:
+    """The ink texture (bare, ``base`` colour) and its material."""
+    import mujoco
+
+    tex = spec.add_texture(name=_INK_TEXTURE, type=mujoco.mjtTexture.mjTEXTURE_2D,
+                           width=tw, height=th, nchannel=3)
+    tex.data = np.broadcast_to(base, (th, tw, 3)).tobytes()
+    mat = spec.add_material(name=_INK_TEXTURE, specular=0.1, shininess=0.1)
+    mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = _INK_TEXTURE
+
+
 class DrawingScene:
     """The render model (the MJCF with the ink texture on the panel, a sky and a dark
     floor), its renderer, the camera and the ink so far; :meth:`render` draws frame ``k``
@@ -256,15 +386,18 @@ class DrawingScene:
         shadows: the key light's shadows (off by default: as costly again, and jagged
             at a shadow map the software renderer affords).
         azimuth, elevation: the camera's direction, degrees.
+        skin: a limb in the panel's place, the ink on it (:class:`SkinInk`).
 
     Raises:
         TattotronixError: the MJCF is missing or unreadable, it lacks a joint of the
-            clip or the panel, or no OpenGL renders here.
+            clip or the panel, the skin's tips are not the clip's, or no OpenGL renders
+            here.
     """
 
     def __init__(self, clip: DrawingClip, mjcf: Path, size_px: tuple[int, int] = SIZE_PX, *,
                  antialias: bool = False, shadows: bool = False,
-                 azimuth: float = AZIMUTH_DEG, elevation: float = ELEVATION_DEG):
+                 azimuth: float = AZIMUTH_DEG, elevation: float = ELEVATION_DEG,
+                 skin: SkinInk | None = None):
         select_gl()
         # PyOpenGL says at INFO that it runs without its C accelerator: not news here
         logging.getLogger("OpenGL.acceleratesupport").setLevel(logging.WARNING)
@@ -275,38 +408,22 @@ class DrawingScene:
         self.clip = clip
         self.size_px = size_px
         spec = load_mujoco_spec(Path(mjcf))  # missing or corrupt: named, with the stage
+        if skin is not None:
+            if len(skin.tip_uvz_mm) != len(clip.tip_t):
+                raise TattotronixError(f"the skin's ink has {len(skin.tip_uvz_mm)} tip "
+                                       f"samples, the clip {len(clip.tip_t)}")
+            with_workpiece(spec, skin.limb)
+        target = "panel" if skin is None else WORKPIECE
         plain = _compile(spec, mjcf)
-        if mujoco.mj_name2id(plain, mujoco.mjtObj.mjOBJ_GEOM, "panel") < 0:
-            raise TattotronixError(f"{mjcf} has no geom 'panel': re-run the 'robot' stage")
-        panel = spec.geom("panel")
+        if mujoco.mj_name2id(plain, mujoco.mjtObj.mjOBJ_GEOM, target) < 0:
+            raise TattotronixError(f"{mjcf} has no geom '{target}': re-run the 'robot' stage")
         self._qadr = _qpos_addresses(plain, clip.joints, mjcf)
-        self.camera = _frame_camera(plain, clip, self._qadr, size_px, azimuth, elevation)
-
-        # the ink texture: TEXELS_PER_PX texels to a pixel where the panel is nearest
-        half = np.asarray(panel.size, dtype=np.float64)  # box half-sizes, m
-        centre = np.asarray(panel.pos, dtype=np.float64)
-        self.panel_lo = centre[:2] - half[:2]
-        self.panel_span = 2 * half[:2]
-        top = centre[2] + half[2]
-        corners = np.array([[x, y, top] for y in (self.panel_lo[1] + self.panel_span[1],
-                                                  self.panel_lo[1])
-                            for x in (self.panel_lo[0], self.panel_lo[0] + self.panel_span[0])])
-        px = self.camera.project(corners, float(plain.vis.global_.fovy), size_px)
-        along_x = np.linalg.norm(px[[1, 3]] - px[[0, 2]], axis=1).max()
-        along_y = np.linalg.norm(px[[2, 3]] - px[[0, 1]], axis=1).max()
-        tw, th = (int(np.clip(round(TEXELS_PER_PX * e), 64, MAX_TEXELS))
-                  for e in (along_x, along_y))
-        base = np.clip(np.asarray(panel.rgba[:3]) * 255, 0, 255).astype(np.uint8)
-        # the panel's colour goes into the texture, the geom's is white; a 2-D texture
-        # covers each face of a box once: row 0 along the face's +y edge, column 0 along
-        # its -x edge (an image of the panel seen from above)
-        tex = spec.add_texture(name=_INK_TEXTURE, type=mujoco.mjtTexture.mjTEXTURE_2D,
-                               width=tw, height=th, nchannel=3)
-        tex.data = np.broadcast_to(base, (th, tw, 3)).tobytes()
-        mat = spec.add_material(name=_INK_TEXTURE, specular=0.1, shininess=0.1)
-        mat.textures[mujoco.mjtTextureRole.mjTEXROLE_RGB] = _INK_TEXTURE
-        panel.material = _INK_TEXTURE
-        panel.rgba = [1.0, 1.0, 1.0, 1.0]
+        self.camera = _frame_camera(plain, clip, self._qadr, size_px, azimuth, elevation,
+                                    target)
+        canvas = (_panel_canvas(spec, plain, self.camera, size_px, clip) if skin is None
+                  else _skin_canvas(spec, skin, plain, self.camera, size_px, clip))
+        tw, th = canvas.size
+        base = canvas.base
         spec.add_texture(name="tattotronix_sky", type=mujoco.mjtTexture.mjTEXTURE_SKYBOX,
                          builtin=mujoco.mjtBuiltin.mjBUILTIN_GRADIENT, width=64, height=64,
                          rgb1=SKY_RGB[0], rgb2=SKY_RGB[1])
@@ -341,16 +458,13 @@ class DrawingScene:
         self.renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = shadows
 
         # the ink's source in texels (4-bit fixed point), and where it is below the surface
-        self.below = clip.tip_m[:, 2] - clip.panel_origin_m[2] < 0.0
-        col = (clip.tip_m[:, 0] - self.panel_lo[0]) / self.panel_span[0] * tw
-        row = (self.panel_lo[1] + self.panel_span[1] - clip.tip_m[:, 1]) / self.panel_span[1] * th
-        self._px = np.rint(np.column_stack([col, row]) * 16).astype(np.int32)
+        self.below, self._px, self._depth = canvas.below, canvas.px, canvas.depth
         self._done = 0  # tip samples already inked
         self._stale = False  # the texture has ink the renderer has not
         self._font = _font(size_px)
         source = "the simulated run" if "simulated" in clip.source else "the planned trajectory"
         self._foot = (f"rendered by MuJoCo (offscreen) from {source}; ink where the tip was "
-                      f"below the panel surface; time x{clip.compression:.1f}")
+                      f"below {canvas.surface}; time x{clip.compression:.1f}")
 
     def pose(self, k: int) -> None:
         """Put the arm where it is at frame ``k`` (``mj_forward``)."""
@@ -393,7 +507,7 @@ class DrawingScene:
         r.update_scene(self.data, self._cam, self.option)
         frame = r.render()
         if captions:
-            down = bool(np.interp(t, clip.tip_t, clip.tip_m[:, 2]) < clip.panel_origin_m[2])
+            down = bool(np.interp(t, clip.tip_t, self._depth) < 0.0)
             label, colour = needle_label(down, int(clip.state[k]))
             self._caption(frame, f"{clip.name}:  t = {t:6.1f} s of {clip.duration_s:.1f} s   "
                                  f"{label}", colour)
@@ -465,13 +579,15 @@ def _qpos_addresses(model: Any, joints: tuple[str, ...], mjcf: Path) -> NDArray[
 
 
 def _frame_camera(model: Any, clip: DrawingClip, qadr: NDArray[np.intp],
-                  size_px: tuple[int, int], azimuth: float, elevation: float) -> Camera:
-    """The camera on the panel and the arm's geoms at a spread of the clip's frames."""
+                  size_px: tuple[int, int], azimuth: float, elevation: float,
+                  target: str = "panel") -> Camera:
+    """The camera on the panel (or the geom ``target``) and the arm's geoms at a spread
+    of the clip's frames."""
     import mujoco
 
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    panel = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "panel")],
+    panel = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, target)],
                      dtype=np.intp)
     arm = np.flatnonzero(model.geom_bodyid > 0).astype(np.intp)
     pts = [_geom_boxes(model, data, panel)]
@@ -500,8 +616,10 @@ def _font(size_px: tuple[int, int]) -> tuple[Any, Any]:
 def render_drawing_3d(clip: DrawingClip, mjcf: Path, gif: Path | None = None,
                       mp4: Path | None = None, *, size_px: tuple[int, int] = SIZE_PX,
                       gif_width_px: int | None = None, gif_every: int = 2,
-                      antialias: bool = False, shadows: bool = False) -> RenderResult:
-    """Render the drawing in 3-D with MuJoCo to a GIF and/or an MP4.
+                      antialias: bool = False, shadows: bool = False,
+                      skin: SkinInk | None = None) -> RenderResult:
+    """Render the drawing in 3-D with MuJoCo to a GIF and/or an MP4 (on the panel, or on
+    a limb with ``skin``).
 
     Args:
         clip: the sampled drawing (:func:`tattotronix.report.animation.drawing_clip`).
@@ -513,6 +631,7 @@ def render_drawing_3d(clip: DrawingClip, mjcf: Path, gif: Path | None = None,
         gif_width_px: GIF width, px (default: the frame's).
         gif_every: GIF frame stride.
         antialias, shadows: as :class:`DrawingScene`.
+        skin: the limb in the panel's place and the ink in the design's chart.
 
     Returns:
         What was written and what it cost (``timings_s``: setup, frames, gif; ``gl``,
@@ -523,7 +642,8 @@ def render_drawing_3d(clip: DrawingClip, mjcf: Path, gif: Path | None = None,
     """
     t0 = time.perf_counter()
     timings: dict[str, float] = {}
-    scene = DrawingScene(clip, mjcf, size_px, antialias=antialias, shadows=shadows)
+    scene = DrawingScene(clip, mjcf, size_px, antialias=antialias, shadows=shadows,
+                         skin=skin)
     try:
         n = len(clip.t)
         sink = ClipWriter(gif, mp4, fps=clip.fps, size_px=size_px,

@@ -4,16 +4,24 @@ with the design laid on it (issue 33)."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from tattotronix.app.onskin import SkinDrawing, SkinRun
-from tattotronix.kinematics.onsurface import SurfaceReach
+from tattotronix.errors import TattotronixError
+from tattotronix.kinematics import Chain
+from tattotronix.kinematics.onsurface import PointsReach, SurfaceReach
 from tattotronix.path.kinds import MARK
+from tattotronix.plants import Workpiece
 from tattotronix.plotting import pyplot
+from tattotronix.report.animation import RenderResult, drawing_clip
+from tattotronix.report.render3d import SkinInk, render_drawing_3d
+from tattotronix.robot.description import RobotDescription
+from tattotronix.surface.chart import Chart
 
-__all__ = ["limb_ink_figure", "surface_figure"]
+__all__ = ["limb_ink_figure", "skin_drawing_video", "skin_ink", "surface_figure"]
 
 #: the ink drawn on the limb: one dot per pixel of this pitch (or the raster's, if coarser)
 LIMB_INK_PITCH_MM = 0.15
@@ -21,18 +29,22 @@ LIMB_INK_PITCH_MM = 0.15
 LIMB_MARGIN_MM = 15.0
 
 
-def surface_figure(d: SkinDrawing, reach: SurfaceReach | None, path: Path, title: str) -> None:
+def surface_figure(d: SkinDrawing, reach: SurfaceReach | PointsReach | None, path: Path,
+                   title: str) -> None:
     """Left: the reachability map over the phantom, unrolled (along its axis, around it),
     coloured by the task Jacobian's condition number where the needle reaches along the
-    normal, grey where it does not, with the design's marking points on it. Right: the
-    limb and the design's needle path on it, seen from the side of the arm's base."""
+    normal, grey where it does not, with the design's marking points on it (on a mesh:
+    its tested points in 3-D, coloured the same way). Right: the limb and the design's
+    needle path on it, seen from the side of the arm's base."""
     plt = pyplot()
     fig = plt.figure(figsize=(12.0, 5.2))
     mark = d.skin.kind == MARK
     xyz = d.skin.xyz_mm
-    ax = fig.add_subplot(1, 2, 1)
     cone = d.surface.cone
-    if reach is not None and cone is not None:
+    if isinstance(reach, PointsReach):
+        _points_reach_axes(fig, reach, xyz[mark])
+    elif isinstance(reach, SurfaceReach) and cone is not None:
+        ax = fig.add_subplot(1, 2, 1)
         cond = np.where(reach.reachable, reach.cond, np.nan)
         ext = (reach.around_deg[0], reach.around_deg[-1], reach.along_mm[0],
                reach.along_mm[-1])
@@ -58,6 +70,7 @@ def surface_figure(d: SkinDrawing, reach: SurfaceReach | None, path: Path, title
                       f"{towards})")
         ax.set_ylabel("along the limb from the elbow end, mm")
     else:
+        ax = fig.add_subplot(1, 2, 1)
         ax.plot(d.skin.uvz_mm[mark, 0], d.skin.uvz_mm[mark, 1], ",", color="crimson")
         ax.set_aspect("equal")
         ax.set_title("the design in its chart (mm on the skin)", fontsize=10)
@@ -95,6 +108,28 @@ def surface_figure(d: SkinDrawing, reach: SurfaceReach | None, path: Path, title
     fig.tight_layout()
     fig.savefig(path, dpi=110, metadata={"Software": None})
     plt.close(fig)
+
+
+def _points_reach_axes(fig: Any, reach: PointsReach, design_mm: NDArray[np.float64]) -> None:
+    """The mesh's tested points in 3-D: coloured by the condition number where the needle
+    reaches along the normal, grey where it does not; the design in red."""
+    ax = fig.add_subplot(1, 2, 1, projection="3d")
+    p = reach.xyz_m * 1000.0
+    ok = reach.reachable
+    ax.scatter(*p[~ok].T, color="0.7", s=6, depthshade=False)
+    sc = ax.scatter(*p[ok].T, c=reach.cond[ok], cmap="viridis", s=8, depthshade=False)
+    fig.colorbar(sc, ax=ax, label="condition number (where reached)", shrink=0.7)
+    ax.plot(*design_mm.T, ",", color="crimson")
+    lo, hi = p.min(axis=0), p.max(axis=0)
+    ax.set_box_aspect(tuple(float(x) for x in np.maximum(hi - lo, 1.0)))
+    ax.locator_params(nbins=5)
+    ax.set_xlabel("x, mm")
+    ax.set_ylabel("y, mm")
+    ax.set_zlabel("z, mm")
+    ax.view_init(elev=25.0, azim=-150.0)
+    ax.set_title(f"needle along the normal reaches {100.0 * float(ok.mean()):.0f} % of "
+                 f"{len(ok)} points of the mesh\n(grey: out of reach; red: the design)",
+                 fontsize=10)
 
 
 def _view(direction: NDArray[np.float64]) -> tuple[float, float]:
@@ -164,3 +199,71 @@ def limb_ink_figure(d: SkinDrawing, run: SkinRun, path: Path, title: str) -> Non
     fig.tight_layout()
     fig.savefig(path, dpi=110, metadata={"Software": None})
     plt.close(fig)
+
+
+#: bare skin kept around the design in the 3-D video's ink raster, mm
+VIDEO_MARGIN_MM = 4.0
+#: the 3-D video's ink texel on the skin, mm
+VIDEO_INK_RES_MM = 0.1
+#: the 3-D video's frame rate (a GIF: the 2-D animation's GIF rate)
+VIDEO_FPS = 12.5
+
+
+def skin_ink(d: SkinDrawing, run: SkinRun, *, margin_mm: float = VIDEO_MARGIN_MM,
+             res_mm: float = VIDEO_INK_RES_MM) -> SkinInk:
+    """The skin as the 3-D video's ink canvas: the limb's mesh, each vertex near the
+    design located in the design's chart (from the planned skin point nearest it, refined
+    by the chart's own inverse, as the simulated tips are), and the run's tips in the
+    chart (the reference's where the run's ink is not scored)."""
+    from scipy.spatial import cKDTree
+
+    verts = np.asarray(d.surface.vertices, dtype=np.float64)
+    u0, v0, u1, v1 = d.box_mm
+    cu, cv = d.centre_mm
+    box = (u0 + cu - margin_mm, v0 + cv - margin_mm, u1 + cu + margin_mm, v1 + cv + margin_mm)
+    dist, near = cKDTree(d.skin.xyz_mm).query(verts)
+    uv = np.full((len(verts), 2), np.nan)
+    # only vertices within the raster's reach of the design: the chart's inverse starts
+    # from the nearest planned point, and a vertex across the limb has no point near it
+    close = np.flatnonzero(dist <= 2 * margin_mm)
+    got, height = _locate_each(d.chart, verts[close], d.skin.uvz_mm[near[close], :2])
+    ok = np.all(np.isfinite(got), axis=1) & (np.abs(height) <= 0.5)
+    uv[close[ok]] = got[ok] + np.asarray(d.centre_mm)
+    tips = run.uvz_mm if len(run.uvz_mm) else run.uvz_ref_mm
+    limb = Workpiece(verts / 1000.0, np.asarray(d.surface.faces, dtype=np.int64))
+    return SkinInk(limb, uv, np.asarray(tips, dtype=np.float64), box, res_mm)
+
+
+def _locate_each(chart: Chart, xyz_mm: NDArray[np.float64], guess_uv_mm: NDArray[np.float64]
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """:meth:`Chart.locate` of each point, NaN where the chart cannot carry it back (a
+    vertex past a scan's patch): the points in halves, down to the ones it refuses."""
+    if len(xyz_mm) == 0:
+        return np.zeros((0, 2)), np.zeros(0)
+    try:
+        return chart.locate(xyz_mm, guess_uv_mm)
+    except TattotronixError:
+        if len(xyz_mm) == 1:
+            return np.full((1, 2), np.nan), np.full(1, np.nan)
+    h = len(xyz_mm) // 2
+    a, b = (_locate_each(chart, xyz_mm[s], guess_uv_mm[s]) for s in (slice(0, h),
+                                                                   slice(h, None)))
+    return np.concatenate([a[0], b[0]]), np.concatenate([a[1], b[1]])
+
+
+def skin_drawing_video(d: SkinDrawing, run: SkinRun, desc: RobotDescription, urdf: Path,
+                       mjcf: Path, name: str, gif: Path) -> RenderResult:
+    """The drawing on the skin in 3-D, as a GIF
+    (:func:`~tattotronix.report.render3d.render_drawing_3d`, at the 2-D animation's GIF
+    rate: every frame rendered is kept): the arm as the simulated run moved it, the limb
+    in the panel's place, the ink growing on it where the simulated tip was in the skin."""
+    traj, sim = d.trajectory, run.loop.run
+    k = len(sim.t)
+    tip_m = Chain.from_description(desc).fk(sim.q)[0] if k else np.zeros((0, 3))
+    scored = len(run.uvz_mm) > 0
+    clip = drawing_clip(desc, urdf, name, traj.t, traj.q, traj.kind, traj.tcp, traj.marked,
+                        np.zeros(3), run_t=sim.t, run_q=sim.q, run_tip_m=tip_m,
+                        run_label=("the simulated run" if scored else
+                                   "the simulated run (its ink not scored: the "
+                                   "reference's shown)"), fps=VIDEO_FPS)
+    return render_drawing_3d(clip, mjcf, gif, None, gif_every=1, skin=skin_ink(d, run))

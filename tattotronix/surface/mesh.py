@@ -27,7 +27,7 @@ from scipy.spatial import cKDTree
 from tattotronix.errors import TattotronixError
 from tattotronix.surface.chart import Chart, SurfacePoints
 
-__all__ = ["MAX_FACES", "MAX_SIZE_MM", "MeshChart", "load_mesh"]
+__all__ = ["MAX_FACES", "MAX_SIZE_MM", "MeshChart", "load_mesh", "vertex_normals"]
 
 Array = NDArray[np.float64]
 Faces = NDArray[np.int64]
@@ -116,7 +116,7 @@ def load_mesh(path: str | Path, unit_mm: float = 1.0, pose: ArrayLike | None = N
     return np.asarray(fixed.vertices, dtype=np.float64), np.asarray(fixed.faces, np.int64)
 
 
-def _vertex_normals(v: Array, f: Faces) -> Array:
+def vertex_normals(v: Array, f: Faces) -> Array:
     """Area-weighted vertex normals of an outward-wound mesh, smoothed by
     :data:`NORMAL_SMOOTHING` passes of averaging over each vertex's neighbours."""
     fn = np.cross(v[f[:, 1]] - v[f[:, 0]], v[f[:, 2]] - v[f[:, 0]])  # 2 area x normal
@@ -228,7 +228,7 @@ class MeshChart(Chart):
         turn = np.array([[c, -s], [s, c]])
         self.uv = (uv - origin) @ turn.T  # the design's coordinates of each vertex, mm
         self.vertices, self.faces = pv, pf2
-        self.normals = _vertex_normals(pv, pf2)
+        self.normals = vertex_normals(pv, pf2)
         self.placement = p
         self._centroids = cKDTree(self.uv[pf2].mean(axis=1))
 
@@ -248,7 +248,8 @@ class MeshChart(Chart):
 
     def _locate(self, q: Array, k: int = 12) -> tuple[NDArray[np.int64], Array]:
         """The flattened face each point falls in (-1: none) and its barycentric
-        coordinates there."""
+        coordinates there: among the faces of the ``k`` centroids nearest it, else (a
+        long face whose centroid is farther than its small neighbours') among all."""
         k = min(k, len(self.faces))
         _, cand = self._centroids.query(q, k=k)
         cand = np.asarray(cand).reshape(len(q), k)
@@ -265,6 +266,13 @@ class MeshChart(Chart):
             idx = np.flatnonzero(todo)[hit]
             face[idx] = c[hit]
             bary[idx] = w[hit]
+        if (face < 0).any():
+            tri = self.uv[self.faces]
+            for i in np.flatnonzero(face < 0):
+                w = _barycentric(tri, np.broadcast_to(q[i], (len(tri), 2)))
+                inside = np.flatnonzero((w >= -1e-9).all(axis=1))
+                if len(inside):
+                    face[i], bary[i] = inside[0], w[inside[0]]
         return face, bary
 
 
