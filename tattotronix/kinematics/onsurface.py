@@ -48,6 +48,8 @@ def _serpentine(rows: int, cols: int) -> NDArray[np.int64]:
 Array = NDArray[np.float64]
 #: rounds of solving unreached points from a reached neighbour's pose
 _GROW_ROUNDS = 50
+#: the most vertices a mesh's map tests (its sampling and path are quadratic in them)
+MAX_MESH_POINTS = 4000
 
 
 def angle_deg(a: Array, b: Array) -> Array:
@@ -237,7 +239,8 @@ def mesh_reach(chain: Chain, vertices_mm: Array, faces: NDArray[np.int64], depth
         depth_mm: the marking depth.
         ik: the IK settings (its needle axis is replaced by each point's inward normal).
         seed: the joint angles the sweep starts from, rad.
-        points: how many vertices to test (all of them when the mesh has fewer).
+        points: how many vertices to test (all of them when the mesh has fewer; at
+            most :data:`MAX_MESH_POINTS`).
 
     Raises:
         TattotronixError: fewer than 4 points asked.
@@ -248,7 +251,7 @@ def mesh_reach(chain: Chain, vertices_mm: Array, faces: NDArray[np.int64], depth
         raise TattotronixError(f"the reachability map needs at least 4 points, got {points}")
     v = np.asarray(vertices_mm, dtype=np.float64)
     normals = vertex_normals(v, np.asarray(faces, dtype=np.int64))
-    pick = _farthest_points(v, min(points, len(v)))
+    pick = _farthest_points(v, min(points, len(v), MAX_MESH_POINTS))
     normal = normals[pick]
     tip = v[pick] - depth_mm * normal
     # one path through them, nearest next: warm starts from a neighbour

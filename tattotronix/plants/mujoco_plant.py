@@ -129,7 +129,7 @@ class MujocoPlant(Plant):
 WORKPIECE = "workpiece"
 
 
-def with_workpiece(spec: Any, workpiece: Workpiece) -> Any:
+def with_workpiece(spec: Any, workpiece: Workpiece) -> Any:  # Any: mujoco.MjSpec
     """The MJCF's spec (``mujoco.MjSpec``) with ``workpiece`` in the panel's place: a mesh
     geom on the world body that collides with nothing (as the panel), its inertia taken as
     a shell (a scanned surface need not be closed; a world geom adds no mass anyway)."""
