@@ -239,6 +239,7 @@ class SkinRun:
         artwork: the simulated ink against the artwork (None: a run that saturated or
             diverged is not scored; ``reason`` says why).
         reason: why the ink is not scored ("" when it is).
+        tip_m: (S, 3) every simulated tip, arm frame, m (the film's ink source).
     """
 
     loop: ClosedLoop
@@ -252,6 +253,7 @@ class SkinRun:
     ink: InkComparison
     artwork: ArtworkFidelity | None
     reason: str
+    tip_m: Array
 
     def summary(self) -> JsonDict:
         """The run's figures (the surface stage's ``run`` metrics): the panel run's
@@ -325,4 +327,4 @@ def simulate_on_surface(cfg: Config, data: Path, desc: RobotDescription, d: Skin
     art = artwork_on(mask, grid)
     fidelity = None if reason else artwork_fidelity(art, sim_ink, res)
     return SkinRun(loop, err, grid, uvz, uvz_ref, sim_ink, plan_ink, art, ink, fidelity,
-                   reason)
+                   reason, tip_m)

@@ -255,11 +255,12 @@ def mesh_reach(chain: Chain, vertices_mm: Array, faces: NDArray[np.int64], depth
     normal = normals[pick]
     tip = v[pick] - depth_mm * normal
     # one path through them, nearest next: warm starts from a neighbour
+    pts = v[pick]
     order = [0]
     left = np.ones(len(pick), bool)
     left[0] = False
     for _ in range(len(pick) - 1):
-        d = np.linalg.norm(v[pick] - v[pick[order[-1]]], axis=1)
+        d = np.linalg.norm(pts - pts[order[-1]], axis=1)
         d[~left] = np.inf
         order.append(int(np.argmin(d)))
         left[order[-1]] = False
@@ -271,7 +272,7 @@ def mesh_reach(chain: Chain, vertices_mm: Array, faces: NDArray[np.int64], depth
     q[path[res.converged]] = res.q[res.converged]
     converged[path[res.converged]] = True
     k = min(neighbours + 1, len(pick))
-    _, nbrs = cKDTree(v[pick]).query(v[pick], k=k)
+    _, nbrs = cKDTree(pts).query(pts, k=k)
     _grow(chain, tip, normal, q, converged, np.asarray(nbrs, dtype=np.int64)[:, 1:], ik)
     tilt, cond, vertical = _quality(chain, q, converged, normal)
     return PointsReach(xyz_m=tip / 1000.0, normal=normal, reachable=converged,

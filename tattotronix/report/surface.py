@@ -11,7 +11,6 @@ from numpy.typing import NDArray
 
 from tattotronix.app.onskin import SkinDrawing, SkinRun
 from tattotronix.errors import TattotronixError
-from tattotronix.kinematics import Chain
 from tattotronix.kinematics.onsurface import PointsReach, SurfaceReach
 from tattotronix.path.kinds import MARK
 from tattotronix.plants import Workpiece
@@ -258,11 +257,9 @@ def skin_drawing_video(d: SkinDrawing, run: SkinRun, desc: RobotDescription, urd
     rate: every frame rendered is kept): the arm as the simulated run moved it, the limb
     in the panel's place, the ink growing on it where the simulated tip was in the skin."""
     traj, sim = d.trajectory, run.loop.run
-    k = len(sim.t)
-    tip_m = Chain.from_description(desc).fk(sim.q)[0] if k else np.zeros((0, 3))
     scored = len(run.uvz_mm) > 0
     clip = drawing_clip(desc, urdf, name, traj.t, traj.q, traj.kind, traj.tcp, traj.marked,
-                        np.zeros(3), run_t=sim.t, run_q=sim.q, run_tip_m=tip_m,
+                        np.zeros(3), run_t=sim.t, run_q=sim.q, run_tip_m=run.tip_m,
                         run_label=("the simulated run" if scored else
                                    "the simulated run (its ink not scored: the "
                                    "reference's shown)"), fps=VIDEO_FPS)

@@ -240,7 +240,9 @@ class MeshChart(Chart):
             i = int(np.flatnonzero(missing)[0])
             raise TattotronixError(
                 f"design point {q[i].round(1).tolist()} mm is past the patch the design "
-                "was laid on: give a larger radius, or make the design smaller")
+                "was laid on (the mesh ends, or wraps, within the design's reach of the "
+                "placement): move it away from the edge (surface.mesh_at_mm), or make the "
+                "design smaller")
         tri = self.faces[face]
         xyz = np.einsum("ij,ijk->ik", bary, self.vertices[tri])
         n = np.einsum("ij,ijk->ik", bary, self.normals[tri])
