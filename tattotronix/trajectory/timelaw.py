@@ -43,7 +43,7 @@ The tip's acceleration limit (:class:`TipLimit`) enters the same passes as eight
 joints (:meth:`TipLimit.channels`). A jerk limit (``jerk_rad_s3``) caps the speed where the
 path's own third derivative is large, then filters each stretch between rests with a
 moving average in time (:func:`_box_filter_law`) and repairs the samples that still
-exceed a limit (:func:`_jerk_piece`); the filtered law keeps every limit, the feed
+exceed a limit (:func:`_jerk_pieces`); the filtered law keeps every limit, the feed
 included, at every sample (and each interval's mean acceleration), with continuous
 acceleration.
 """
@@ -52,6 +52,7 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -239,21 +240,60 @@ def _bound(coef_free: Array, coef_fixed: Array, a: Array) -> tuple[Array, Array]
     return alpha, beta
 
 
-def _feasible(p: Array, q: Array, a: Array, x0: Array, x1: Array) -> NDArray[np.bool_]:
-    """(M,) whether each pair ``(x0, x1)`` keeps every row within its limit."""
-    lhs = np.abs(p * x0[:, None] + q * x1[:, None])
-    return np.all(lhs <= a * (1.0 + _REL_TOL) + 1e-300, axis=1)
+@dataclass(frozen=True)
+class _Rows:
+    """A path's constraint rows (:func:`_rows`) and the bounds the passes step by
+    (:func:`_bound`). They depend on the path alone, not on the caps: a stretch between
+    rests takes its slice of the whole path's (:meth:`slice`), and its repairs reuse it.
+
+    Attributes:
+        p, q: (M, R) coefficients of ``x_i`` and ``x_{i+1}`` per interval and row.
+        lim: (M, R) each row's limit with the rounding slack the feasibility test allows.
+        fa, fb: forward bounds, ``x_{i+1} <= fa + fb x_i``.
+        ba, bb: backward bounds, ``x_i <= ba + bb x_{i+1}``.
+    """
+
+    p: Array
+    q: Array
+    lim: Array
+    fa: Array
+    fb: Array
+    ba: Array
+    bb: Array
+
+    @classmethod
+    def of(cls, s: Array, ch: _Channels) -> _Rows:
+        """The rows of the path at arc lengths ``s`` with channels ``ch``."""
+        p, q = _rows(ch.dq, ch.d2q, np.diff(s))
+        a2 = np.tile(ch.acc, (1, 4))
+        fa, fb = _bound(q, p, a2)
+        ba, bb = _bound(p, q, a2)
+        return cls(p, q, a2 * (1.0 + _REL_TOL) + 1e-300, fa, fb, ba, bb)
+
+    def slice(self, part: slice) -> _Rows:
+        """The rows of points ``part`` (a contiguous stretch: its intervals), as views."""
+        stop = part.stop - 1 if part.stop is not None else None
+        cut = slice(part.start, stop)
+        return _Rows(self.p[cut], self.q[cut], self.lim[cut], self.fa[cut], self.fb[cut],
+                     self.ba[cut], self.bb[cut])
+
+    def feasible(self, x0: Array, x1: Array) -> NDArray[np.bool_]:
+        """(M,) whether each pair ``(x0, x1)`` keeps every row within its limit."""
+        lhs = self.p * x0[:, None]
+        lhs += self.q * x1[:, None]
+        np.abs(lhs, out=lhs)
+        return np.all(lhs <= self.lim, axis=1)
 
 
-def _passes(cap: Array, p: Array, q: Array, a2: Array, fa: Array, fb: Array, ba: Array,
-            bb: Array) -> tuple[Array, int]:
+def _passes(cap: Array, rows: _Rows) -> tuple[Array, int]:
     """One forward and one backward pass under ``cap``: (x = sdot^2 per point, points
     stepped one at a time)."""
     n_pts = len(cap)
+    fa, fb, ba, bb = rows.fa, rows.fb, rows.ba, rows.bb
     stepped = 0
     x = np.empty(n_pts)
     x[0] = 0.0
-    ok = _feasible(p, q, a2, cap[:-1], cap[1:])
+    ok = rows.feasible(cap[:-1], cap[1:])
     bad = np.flatnonzero(~ok)
     i = 0
     while i < n_pts - 1:
@@ -270,7 +310,7 @@ def _passes(cap: Array, p: Array, q: Array, a2: Array, fa: Array, fb: Array, ba:
         i += 1
 
     fwd = x.copy()
-    ok = _feasible(p, q, a2, fwd[:-1], fwd[1:])
+    ok = rows.feasible(fwd[:-1], fwd[1:])
     bad = np.flatnonzero(~ok)
     i = n_pts - 2
     while i >= 0:
@@ -359,30 +399,65 @@ def _box_filter_law(t: Array, s: Array, v: Array, u: Array, window: float
     Returns:
         ``(t_f, sdot_f, sddot_f)`` at the points ``s`` (times from 0).
     """
-    n_pts = len(t)
-    dt = np.diff(t)
-    cum = np.concatenate(([0.0], np.cumsum(s[:-1] * dt + v[:-1] * dt**2 / 2
-                                          + u * dt**3 / 6)))
-    t_end = float(t[-1])
-    s_end = float(s[-1])
+    return _box_filter_laws([(t, s, v, u)], [window])[0]
 
-    def at(tq: Array) -> tuple[Array, Array, Array]:
-        """The law's area (the integral of ``s``), position and speed at times ``tq``."""
-        k = np.searchsorted(t, tq, side="right") - 1
-        np.maximum(k, 0, out=k)  # np.clip's, without its per-call checks
-        np.minimum(k, n_pts - 2, out=k)
+
+class _Laws:
+    """Several laws (stretches between rests) side by side, each with its filter window:
+    the arrays of all of them end to end, so that one NumPy call serves every stretch
+    (a drawing has dozens, and most of the filter's cost was per call)."""
+
+    def __init__(self, laws: Sequence[tuple[Array, Array, Array, Array]],
+                 windows: Sequence[float]) -> None:
+        sizes = np.array([len(law[0]) for law in laws])
+        self.start = np.concatenate(([0], np.cumsum(sizes)))
+        self.last = self.start[1:] - 1
+        self.t = np.concatenate([law[0] for law in laws])
+        self.s = np.concatenate([law[1] for law in laws])
+        self.v = np.concatenate([law[2] for law in laws])
+        # per interval, padded by one so that a point's index is its interval's
+        self.u = np.concatenate([np.append(law[3], 0.0) for law in laws])
+        # the law's area (the integral of s) at each point, stretch by stretch
+        self.cum = np.concatenate([np.concatenate(([0.0], np.cumsum(
+            s[:-1] * np.diff(t) + v[:-1] * np.diff(t) ** 2 / 2 + u * np.diff(t) ** 3 / 6)))
+            for t, s, v, u in laws])
+        self.piece = np.repeat(np.arange(len(laws)), sizes)
+        self.window = np.asarray(windows, dtype=np.float64)[self.piece]  # per point
+        self.half = self.window / 2
+
+    def at(self, tq: Array, idx: NDArray[np.intp]) -> tuple[Array, Array, Array]:
+        """The law's area, position and speed at times ``tq`` (from each stretch's own
+        start), ``tq[j]`` on the stretch of point ``idx[j]`` (``idx`` ascending)."""
+        start, t = self.start, self.t
+        k = np.empty(len(tq), np.intp)
+        cuts = np.searchsorted(idx, start)
+        for p in np.flatnonzero(np.diff(cuts)):
+            a, b = cuts[p], cuts[p + 1]
+            k[a:b] = np.searchsorted(t[start[p]:start[p + 1]], tq[a:b], side="right")
+        pc = self.piece[idx]
+        first, last = start[pc], self.last[pc]
+        k += first - 1
+        np.maximum(k, first, out=k)  # np.clip's, without its per-call checks
+        np.minimum(k, last - 1, out=k)
         tau = tq - t[k]
-        sk, vk, uk = s[k], v[k], u[k]
+        sk, vk, uk = self.s[k], self.v[k], self.u[k]
         vel = vk + uk * tau
         pos = sk + tau * (vk + vel) / 2
-        inside = cum[k] + tau * (sk + tau * (vk / 2 + uk * tau / 6))
+        inside = self.cum[k] + tau * (sk + tau * (vk / 2 + uk * tau / 6))
+        t_end, s_end = t[last], self.s[last]
         before, after = tq < 0.0, tq > t_end
-        return (np.where(before, s[0] * tq,
-                         np.where(after, cum[-1] + s_end * (tq - t_end), inside)),
-                np.where(before, s[0], np.where(after, s_end, pos)),
+        return (np.where(before, self.s[first] * tq,
+                         np.where(after, self.cum[last] + s_end * (tq - t_end), inside)),
+                np.where(before, self.s[first], np.where(after, s_end, pos)),
                 np.where(before | after, 0.0, vel))
 
-    half = window / 2
+
+def _box_filter_laws(laws: Sequence[tuple[Array, Array, Array, Array]],
+                     windows: Sequence[float]) -> list[tuple[Array, Array, Array]]:
+    """:func:`_box_filter_law` of each ``(t, s, sdot, u)`` with its window, all at once
+    (each point's arithmetic is the same as alone, to the bit)."""
+    law = _Laws(laws, windows)
+    t, s, half, window = law.t, law.s, law.half, law.window
     # s_f(tau) = (A(tau + W/2) - A(tau - W/2)) / W with A the integral of s: a point's
     # filtered time solves s_f(tau) = s_i, and lies within W/2 of its own time (s_f is
     # between s(tau - W/2) and s(tau + W/2)). Halley's method in that bracket (the first
@@ -393,15 +468,17 @@ def _box_filter_law(t: Array, s: Array, v: Array, u: Array, window: float
     lo, hi = t - half, t + half
     tf = t.copy()
     goal = s * window
-    todo = np.arange(1, n_pts - 1)  # the ends are set below
+    ends = np.zeros(len(t), bool)
+    ends[law.start[:-1]] = ends[law.last] = True
+    todo = np.flatnonzero(~ends)  # the ends are set below
     tol = 1e-12
     for _ in range(100):
-        tq = tf[todo]
-        a, p, w = at(np.concatenate((tq + half, tq - half)))
-        m = len(todo)
-        f = a[:m] - a[m:] - goal[todo]
-        slope = p[:m] - p[m:]
-        bend = w[:m] - w[m:]
+        tq, hq = tf[todo], half[todo]
+        a1, p1, w1 = law.at(tq + hq, todo)
+        a0, p0, w0 = law.at(tq - hq, todo)
+        f = a1 - a0 - goal[todo]
+        slope = p1 - p0
+        bend = w1 - w0
         lo_t = np.where(f < 0, tq, lo[todo])
         hi_t = np.where(f > 0, tq, hi[todo])
         lo[todo], hi[todo] = lo_t, hi_t
@@ -414,13 +491,17 @@ def _box_filter_law(t: Array, s: Array, v: Array, u: Array, window: float
         todo = todo[moving]
         if not todo.size:
             break
-    tf[0], tf[-1] = -half, t_end + half
-    _, pp, vp = at(tf + half)
-    _, pm, vm = at(tf - half)
+    tf[law.start[:-1]] = -half[law.start[:-1]]
+    tf[law.last] = t[law.last] + half[law.last]
+    every = np.arange(len(t))
+    _, pp, vp = law.at(tf + half, every)
+    _, pm, vm = law.at(tf - half, every)
     sdot_f, sddot_f = (pp - pm) / window, (vp - vm) / window
-    sdot_f[[0, -1]] = 0.0  # at rest (the window's mean is 0 there, to rounding)
-    sddot_f[[0, -1]] = 0.0
-    return tf + half, sdot_f, sddot_f
+    sdot_f[ends] = 0.0  # at rest (the window's mean is 0 there, to rounding)
+    sddot_f[ends] = 0.0
+    tf += half
+    return [(tf[a:b], sdot_f[a:b], sddot_f[a:b])
+            for a, b in zip(law.start[:-1], law.start[1:], strict=True)]
 
 
 @dataclass(frozen=True)
@@ -466,13 +547,13 @@ def _caps(s: Array, ch: _Channels, sdot_cap: Array, n_joints: int,
     return cap
 
 
-def _topp(cap: Array, s: Array, ch: _Channels) -> tuple[Array, int]:
-    """The largest feasible ``x = sdot^2`` under ``cap`` (the module docstring's passes)."""
-    h = np.diff(s)
-    p, q = _rows(ch.dq, ch.d2q, h)
-    a2 = np.tile(ch.acc, (1, 4))
-    fa, fb = _bound(q, p, a2)  # forward: x_{i+1} <= fa + fb x_i
-    ba, bb = _bound(p, q, a2)  # backward: x_i <= ba + bb x_{i+1}
+def _topp(cap: Array, rows: _Rows) -> tuple[Array, int]:
+    """The largest feasible ``x = sdot^2`` under ``cap`` (the module docstring's passes).
+
+    Rest points (a cap of 0) split the path: the passes restart from rest at each, so the
+    law of a stretch between two rests is the same whether it is solved alone or with
+    the whole path, to the bit (the jerk filter solves the whole path once, then each
+    stretch it repairs on its own)."""
     stepped = 0
     # Where the forward pass finds no reachable next state (x_i too fast for what
     # follows), it leaves the next point at its cap and the backward pass slows x_i; the
@@ -480,9 +561,9 @@ def _topp(cap: Array, s: Array, ch: _Channels) -> tuple[Array, int]:
     # every path but the most jagged).
     upper = cap
     for _ in range(_MAX_PASSES):
-        x, n_stepped = _passes(upper, p, q, a2, fa, fb, ba, bb)
+        x, n_stepped = _passes(upper, rows)
         stepped += n_stepped
-        if np.all(_feasible(p, q, a2, x[:-1], x[1:])) or np.array_equal(x, upper):
+        if np.all(rows.feasible(x[:-1], x[1:])) or np.array_equal(x, upper):
             break
         upper = x
     x[0] = 0.0
@@ -565,47 +646,97 @@ class _Piece:
     stepped: int
 
 
-def _jerk_piece(s: Array, ch: _Channels, cap: Array, feed: Array, dq: Array, d2q: Array,
-                limits: JointLimits, tip: TipLimit | None, jerk: float) -> _Piece:
-    """The jerk-limited law of one rest-to-rest stretch: the time-optimal law under
-    ``cap``, filtered by a window of ``2 a_path / J`` (times :data:`_WINDOW_MARGIN`) with
-    ``a_path`` the largest joint acceleration its path acceleration makes; where a sample
-    still exceeds a limit the caps around it are lowered and the law planned again, and
-    every :data:`_WIDEN_EVERY` rounds the window widens instead (what lower caps do not
-    mend is the filter's own path jerk)."""
-    h = np.diff(s)
-    stepped = 0
-    x, more = _topp(cap, s, ch)
-    stepped += more
-    t, sdot, _, u = _law_of(x, h)
-    a_path = float(np.max(np.abs(dq[:-1] * u[:, None]).max(axis=1), initial=0.0))
-    window = max(_WINDOW_MARGIN * 2.0 * a_path / jerk, _MIN_WINDOW_S)
-    base_cap, base = cap, (t, sdot, u)
-    strikes = np.zeros(len(s), np.int64)
-    since_widen = 0
-    for repairs in range(_MAX_REPAIRS + 1):
-        tf, sdf, sddf = _box_filter_law(t, s, sdot, u, window)
-        found = _slowdown(tf, sdf, sddf, dq, d2q, feed, limits, tip, jerk)
+@dataclass
+class _Stretch:
+    """One rest-to-rest stretch as the jerk filter repairs it (:func:`_jerk_pieces`): its
+    path, its caps, its current law and window, and the repair's counters."""
+
+    s: Array
+    rows: _Rows
+    cap: Array
+    feed: Array
+    dq: Array
+    d2q: Array
+    tip: TipLimit | None
+    x: Array  # the time-optimal law's squared speeds under ``cap``
+    window: float = 0.0
+    repairs: int = 0
+    stepped: int = 0
+    since_widen: int = 0
+
+    def __post_init__(self) -> None:
+        self.h = np.diff(self.s)
+        self.t, self.sdot, _, self.u = _law_of(self.x, self.h)
+        self.base = (self.cap, self.t, self.sdot, self.u)
+        self.strikes = np.zeros(len(self.s), np.int64)
+
+    def law(self) -> tuple[Array, Array, Array, Array]:
+        """``(t, s, sdot, u)``: the law the filter takes."""
+        return self.t, self.s, self.sdot, self.u
+
+    def start_window(self, jerk: float) -> None:
+        """The first window: ``2 a_path / J`` (times :data:`_WINDOW_MARGIN`) with
+        ``a_path`` the largest joint acceleration the law's path acceleration makes."""
+        a_path = float(np.max(np.abs(self.dq[:-1] * self.u[:, None]).max(axis=1),
+                              initial=0.0))
+        self.window = max(_WINDOW_MARGIN * 2.0 * a_path / jerk, _MIN_WINDOW_S)
+
+    def repair(self, filtered: tuple[Array, Array, Array], limits: JointLimits,
+               jerk: float) -> _Piece | None:
+        """The stretch's filtered law when it keeps every limit; else lower the caps (or
+        widen the window) and plan again, and None."""
+        tf, sdf, sddf = filtered
+        found = _slowdown(tf, sdf, sddf, self.dq, self.d2q, self.feed, limits, self.tip,
+                          jerk)
         if found is None:
-            return _Piece(tf, sdf, sddf, window, repairs, stepped)
+            return _Piece(tf, sdf, sddf, self.window, self.repairs, self.stepped)
+        if self.repairs == _MAX_REPAIRS:
+            raise TattotronixError(
+                f"the time law cannot keep the jerk limit {jerk:g} rad/s^3 on this path "
+                f"after {_MAX_REPAIRS} repairs: raise trajectory.jerk_rad_s3")
+        self.repairs += 1
         need, jerk_exceeded = found
-        since_widen += 1
-        if jerk_exceeded and since_widen >= _WIDEN_EVERY:
+        self.since_widen += 1
+        if jerk_exceeded and self.since_widen >= _WIDEN_EVERY:
             # what lowered caps do not mend is the filter's own path jerk (the law's
             # acceleration switching within one window): widen it and start again
-            window *= _WIDEN
-            cap, (t, sdot, u) = base_cap, base
-            strikes[:] = 0
-            since_widen = 0
-            continue
-        cap = _lower_caps(cap, tf, sdf, need, strikes, window)
-        strikes += need < 1.0
-        x, more = _topp(cap, s, ch)
-        stepped += more
-        t, sdot, _, u = _law_of(x, h)
-    raise TattotronixError(
-        f"the time law cannot keep the jerk limit {jerk:g} rad/s^3 on this path after "
-        f"{_MAX_REPAIRS} repairs: raise trajectory.jerk_rad_s3")
+            self.window *= _WIDEN
+            self.cap, self.t, self.sdot, self.u = self.base
+            self.strikes[:] = 0
+            self.since_widen = 0
+            return None
+        self.cap = _lower_caps(self.cap, tf, sdf, need, self.strikes, self.window)
+        self.strikes += need < 1.0
+        x, more = _topp(self.cap, self.rows)
+        self.stepped += more
+        self.t, self.sdot, _, self.u = _law_of(x, self.h)
+        return None
+
+
+def _jerk_pieces(stretches: list[_Stretch], limits: JointLimits, jerk: float
+                 ) -> list[_Piece]:
+    """The jerk-limited law of each rest-to-rest stretch: its time-optimal law filtered by
+    its window (:meth:`_Stretch.start_window`); where a sample still exceeds a limit the
+    caps around it are lowered and the law planned again, and every
+    :data:`_WIDEN_EVERY` rounds the window widens instead (what lower caps do not mend is
+    the filter's own path jerk). Each round filters every stretch still being repaired
+    in one batch (:func:`_box_filter_laws`)."""
+    for stretch in stretches:
+        stretch.start_window(jerk)
+    done: dict[int, _Piece] = {}
+    todo = list(range(len(stretches)))
+    while todo:
+        filtered = _box_filter_laws([stretches[i].law() for i in todo],
+                                    [stretches[i].window for i in todo])
+        still = []
+        for i, law in zip(todo, filtered, strict=True):
+            piece = stretches[i].repair(law, limits, jerk)
+            if piece is None:
+                still.append(i)
+            else:
+                done[i] = piece
+        todo = still
+    return [done[i] for i in range(len(stretches))]
 
 
 def time_parameterise(s: Array, dq: Array, d2q: Array, sdot_cap: Array,
@@ -671,23 +802,25 @@ def time_parameterise(s: Array, dq: Array, d2q: Array, sdot_cap: Array,
     if not np.all(cap[inner] > 0):
         i = int(np.flatnonzero(inner & ~(cap > 0))[0])
         raise TattotronixError(f"the path speed cap is zero at point {i}: a feed of 0")
-    x, stepped = _topp(cap, s, ch)
+    rows = _Rows.of(s, ch)
+    x, stepped = _topp(cap, rows)
     t, sdot, sddot, u = _law_of(x, h)
     feed = np.asarray(sdot_cap, dtype=np.float64) ** 2
     windows: list[float] = []
     repairs = 0
     if jerk_rad_s3 is not None:
         # each stretch between rests is filtered on its own, with the window its own
-        # path accelerations need: short on the ink, where the tip limit keeps them small
+        # path accelerations need: short on the ink, where the tip limit keeps them small;
+        # each starts from its part of the whole path's law (the rests split it)
         bounds = np.unique(np.concatenate(([0], stops, [n_pts - 1])))
+        parts = [slice(int(lo), int(hi) + 1)
+                 for lo, hi in zip(bounds[:-1], bounds[1:], strict=True)]
+        stretches = [_Stretch(s[part], rows.slice(part), cap[part], feed[part], dq[part],
+                              d2q[part], tip.slice(part) if tip is not None else None,
+                              x[part]) for part in parts]
         t_parts, v_parts, a_parts = [np.zeros(1)], [np.zeros(1)], [np.zeros(1)]
         clock = 0.0
-        for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
-            part = slice(int(lo), int(hi) + 1)
-            piece = _jerk_piece(s[part], ch.slice(part), cap[part], feed[part], dq[part],
-                                d2q[part],
-                                limits, tip.slice(part) if tip is not None else None,
-                                jerk_rad_s3)
+        for piece in _jerk_pieces(stretches, limits, jerk_rad_s3):
             t_parts.append(clock + piece.t[1:])
             v_parts.append(piece.sdot[1:])
             a_parts.append(piece.sddot[1:])
