@@ -48,7 +48,12 @@ def toolpath_figure(tp: Toolpath, panel_size_mm: tuple[float, float], path: Path
     from matplotlib.collections import LineCollection
     from matplotlib.patches import Rectangle
 
-    fig, ax = plt.subplots(figsize=(10, 10 * ph / pw + 0.9), dpi=150)
+    # a fixed layout in inches (matplotlib's tight_layout measured every label first: 40 %
+    # of the preview's time): the title's two lines above, the labels and the legend below
+    fig_h = 10 * ph / pw + 0.9
+    fig, ax = plt.subplots(figsize=(10, fig_h), dpi=150)
+    fig.subplots_adjust(left=0.75 / 10, right=1 - 0.15 / 10, top=1 - 0.5 / fig_h,
+                        bottom=0.85 / fig_h)
     ax.add_patch(Rectangle((-pw / 2, -ph / 2), pw, ph, facecolor="#f4efe6",
                            edgecolor="#8a7f70", lw=1.2, zorder=0))
     ax.add_collection(LineCollection(_runs(uv, travel), colors="#d9480f", linewidths=0.5,
@@ -75,6 +80,5 @@ def toolpath_figure(tp: Toolpath, panel_size_mm: tuple[float, float], path: Path
     # below the axes: inside, it would cover the panel's edge or the drawing
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.07), ncol=3, fontsize=8,
               frameon=False)
-    fig.tight_layout()
-    fig.savefig(path, format="png")
+    fig.savefig(path, format="png", pil_kwargs={"compress_level": 1})  # 3x faster, 1.2x larger
     plt.close(fig)
