@@ -23,6 +23,8 @@ Each case hypothesis once found failing (shrunk by hand) is pinned with ``@examp
 the feed exceeded next to travel, a last speed of -6e-18, a stall from a tip-limit
 coefficient of 1e-13 where it is 0, and a laxer jerk limit refused.
 * Bad input: a non-positive or NaN jerk limit is refused.
+* Rests split the law: the whole path's law on each stretch between rests is the
+  stretch's own, to the bit; the jerk filter of several laws at once is each alone's.
 * The jerk filter's timing: each point's filtered time puts the window's mean position at
   the point (against a Gauss-Legendre quadrature of the unfiltered law), on random laws
   with rests and near-rest crawls and windows from 5 ms to 0.5 s.
@@ -228,6 +230,67 @@ def test_marking_reaches_the_feed_on_a_straight_run(
     law, _ = plan_or_reject(path, tip_m_s2, jerk)
     middle = law.sdot[k0 + count // 3:k1 - count // 3 + 1]
     assert np.any(np.abs(middle - FEED) <= REL * FEED), (middle.max(), FEED)
+
+
+# ----------------------------------------------------------------- rests split the path
+
+
+@SLOW
+@given(path=paths(), tip_m_s2=st.sampled_from(TIPS), jerk=st.sampled_from(JERKS),
+       picks=st.lists(st.floats(0.05, 0.95), min_size=1, max_size=4))
+def test_a_rest_splits_the_law_into_the_laws_of_its_stretches(
+        path: Path, tip_m_s2: float, jerk: float | None, picks: list[float]) -> None:
+    """Rests decouple the law: the whole path's law, on each stretch between rests, is
+    that stretch's own law (timed alone, from rest to rest), to the bit in speed and
+    acceleration. The jerk filter relies on it: it solves the whole path once, and
+    filters and repairs every stretch in one batch."""
+    n = len(path.s)
+    rests = np.unique([int(round(p * (n - 1))) for p in picks])
+    rests = rests[(rests > 1) & (rests < n - 2)]
+    assume(rests.size and np.all(np.diff(rests) > 2))
+    dq, d2q = path_derivatives(joints(path.p), path.s)
+    dp, d2p = path_derivatives(path.p, path.s)
+    tip = TipLimit(dp, d2p, tip_m_s2, path.on)
+    cap = np.where(tip.points(), FEED, TRAVEL)
+    try:
+        whole = time_parameterise(path.s, dq, d2q, cap, LIMITS, tip=tip, jerk_rad_s3=jerk,
+                                  rests=rests)
+    except TattotronixError:
+        assume(False)
+        raise
+    bounds = np.concatenate(([0], rests, [n - 1]))
+    for lo, hi in zip(bounds[:-1], bounds[1:], strict=True):
+        part = slice(int(lo), int(hi) + 1)
+        alone = time_parameterise(path.s[part], dq[part], d2q[part], cap[part], LIMITS,
+                                  tip=tip.slice(part), jerk_rad_s3=jerk)
+        assert np.array_equal(whole.sdot[part], alone.sdot)
+        inner = slice(int(lo) + 1, int(hi))  # a rest's acceleration joins two stretches
+        assert np.array_equal(whole.sddot[inner], alone.sddot[1:-1])
+        assert np.allclose(whole.t[part] - whole.t[lo], alone.t, rtol=1e-12, atol=1e-15)
+
+
+@given(seed=st.integers(0, 2**32 - 1), count=st.integers(1, 6))
+@settings(max_examples=30, deadline=None)
+def test_the_batched_filter_is_each_filter_alone(seed: int, count: int) -> None:
+    """The jerk filter of several laws at once (what the repairs run) is, law by law, the
+    filter of each alone, bit for bit, each with its own window."""
+    from tattotronix.trajectory.timelaw import _box_filter_law, _box_filter_laws
+
+    rng = np.random.default_rng(seed)
+    laws, windows = [], []
+    for _ in range(count):
+        n = int(rng.integers(3, 60))
+        x = np.concatenate(([0.0], rng.uniform(1e-6, 0.04, n - 2) ** 2, [0.0]))
+        h = rng.uniform(1e-5, 5e-3, n - 1)
+        s = float(rng.uniform(0.0, 0.5)) + np.concatenate(([0.0], np.cumsum(h)))
+        v = np.sqrt(x)
+        t = np.concatenate(([0.0], np.cumsum(2 * h / (v[:-1] + v[1:]))))
+        laws.append((t, s, v, np.diff(x) / (2 * h)))
+        windows.append(float(rng.choice((0.005, 0.05, 0.5))))
+    batched = _box_filter_laws(laws, windows)
+    for law, window, got in zip(laws, windows, batched, strict=True):
+        for a, b in zip(_box_filter_law(*law, window), got, strict=True):
+            assert np.array_equal(a, b)
 
 
 # ----------------------------------------------------------------- monotone in the limits
