@@ -13,9 +13,10 @@ surface's mesh, the skin path, the joint angles, the reachability map),
 ``data/metrics/surface/<name>.json`` (its ``run`` section: the simulation) and
 ``data/figures/surface/<name>.png``, ``<name>-ink.png`` (the simulated ink against the
 artwork, in the design's chart), ``<name>-limb.png`` (that ink carried onto the limb, in
-3-D) and ``<name>-drawing3d.gif`` (the drawing as a film: MuJoCo's offscreen renderer, the
-arm as the run moved it, the ink growing on the limb). ``viewer=true`` shows the run,
-the limb in the panel's place, in the engine's viewer where a display exists.
+3-D) and ``<name>-drawing3d.gif`` and ``.mp4`` (the drawing as a film: MuJoCo's offscreen
+renderer, the pen as the run moved it, the ink growing on the limb, seen close).
+``viewer=true`` shows the run, the limb in the panel's place, in the engine's viewer where
+a display exists.
 """
 
 from __future__ import annotations
@@ -104,7 +105,8 @@ def main(cfg: Config, out: Outputs) -> None:
     video = skin_drawing_video(
         d, run, desc, out.require(out.input("robot", f"{desc.name}.urdf"), "robot"),
         out.require(out.input("robot", f"{desc.name}.xml"), "robot"), name,
-        out.tmp_path(out.path("figures", "surface", f"{name}-drawing3d.gif")))
+        out.tmp_path(out.path("figures", "surface", f"{name}-drawing3d.gif")),
+        out.tmp_path(out.path("figures", "surface", f"{name}-drawing3d.mp4")))
     log.info("surface %s: the 3-D film (MuJoCo, MUJOCO_GL=%s): %d frames, %.1f s", name,
              gl or "its default", video.frames, video.wall_s)
     dist = d.distortion

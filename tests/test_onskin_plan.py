@@ -159,6 +159,8 @@ def test_the_stage_writes_its_outputs(tmp_path: Path, draw_data: Path) -> None:
     assert skin.sum() > 2000  # the limb is in the scene
     inked = (first.sum(axis=2) - last.sum(axis=2)) > 90  # darker at the end than at first
     assert inked.sum() > 100
+    film = tmp_path / "figures" / "surface" / "emblem-forearm-drawing3d.mp4"
+    assert film.stat().st_size > 10_000 and film.read_bytes()[4:8] == b"ftyp"  # an MP4
 
 
 def test_a_scanned_limb_gets_its_own_reach_map(tmp_path: Path, draw_data: Path) -> None:

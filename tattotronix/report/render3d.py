@@ -95,6 +95,10 @@ FLOOR_RGB = ((0.3, 0.32, 0.35), (0.25, 0.27, 0.3))
 FLOOR_SQUARE_M = 0.1
 #: Largest ink texture side, texels.
 MAX_TEXELS = 2048
+#: How much of the pen above the needle's tip the skin's film frames, m.
+SKIN_PEN_M = 0.03
+#: The skin film's vertical field of view, degrees (the panel's: MuJoCo's 45).
+SKIN_FOVY_DEG = 12.0
 #: The panel texture's name in the render model.
 _INK_TEXTURE = "tattotronix_ink"
 _PROBE = ("import mujoco\n"
@@ -413,13 +417,17 @@ class DrawingScene:
                 raise TattotronixError(f"the skin's ink has {len(skin.tip_uvz_mm)} tip "
                                        f"samples, the clip {len(clip.tip_t)}")
             with_workpiece(spec, skin.limb)
+            # a long lens from afar: near, the arm's links swept between it and the skin
+            spec.visual.global_.fovy = SKIN_FOVY_DEG
         target = "panel" if skin is None else WORKPIECE
         plain = _compile(spec, mjcf)
         if mujoco.mj_name2id(plain, mujoco.mjtObj.mjOBJ_GEOM, target) < 0:
             raise TattotronixError(f"{mjcf} has no geom '{target}': re-run the 'robot' stage")
         self._qadr = _qpos_addresses(plain, clip.joints, mjcf)
-        self.camera = _frame_camera(plain, clip, self._qadr, size_px, azimuth, elevation,
-                                    target)
+        self.camera = (_frame_camera(plain, clip, self._qadr, size_px, azimuth, elevation,
+                                     target) if skin is None
+                       else _skin_camera(skin, clip, size_px, azimuth, elevation,
+                                         float(plain.vis.global_.fovy)))
         canvas = (_panel_canvas(spec, plain, self.camera, size_px, clip) if skin is None
                   else _skin_canvas(spec, skin, plain, self.camera, size_px, clip))
         tw, th = canvas.size
@@ -597,6 +605,25 @@ def _frame_camera(model: Any, clip: DrawingClip, qadr: NDArray[np.intp],
         pts.append(_geom_boxes(model, data, arm))
     return arm_camera(np.vstack(pts), fovy_deg=float(model.vis.global_.fovy),
                       aspect=size_px[0] / size_px[1], azimuth=azimuth, elevation=elevation,
+                      band=(-1.0 + 2 * FOOT_H, 1.0 - 2 * TITLE_H))
+
+
+def _skin_camera(skin: SkinInk, clip: DrawingClip, size_px: tuple[int, int],
+                 azimuth: float, elevation: float, fovy_deg: float) -> Camera:
+    """The camera on the design's part of the limb (every vertex the raster's box holds)
+    and the lower part of the pen over it (:data:`SKIN_PEN_M` above each tip sample in
+    the skin): the design is a few centimetres on a limb the arm dwarfs, so framed as on the
+    panel, with the whole arm, it filled a tenth of the frame's width."""
+    uv = skin.vertex_uv_mm
+    u0, v0, u1, v1 = skin.box_mm
+    with np.errstate(invalid="ignore"):
+        near = ((uv[:, 0] >= u0) & (uv[:, 0] <= u1) & (uv[:, 1] >= v0) & (uv[:, 1] <= v1))
+    pts = [skin.limb.vertices_m[near]]
+    inside = skin.tip_uvz_mm[:, 2] < 0  # the tip in the skin: marking
+    marking = clip.tip_m[inside] if np.any(inside) else clip.tip_m
+    pts += [marking, marking + np.array([0.0, 0.0, SKIN_PEN_M])]
+    return arm_camera(np.vstack(pts), fovy_deg=fovy_deg, aspect=size_px[0] / size_px[1],
+                      azimuth=azimuth, elevation=elevation,
                       band=(-1.0 + 2 * FOOT_H, 1.0 - 2 * TITLE_H))
 
 

@@ -251,11 +251,13 @@ def _locate_each(chart: Chart, xyz_mm: NDArray[np.float64], guess_uv_mm: NDArray
 
 
 def skin_drawing_video(d: SkinDrawing, run: SkinRun, desc: RobotDescription, urdf: Path,
-                       mjcf: Path, name: str, gif: Path) -> RenderResult:
-    """The drawing on the skin in 3-D, as a GIF
+                       mjcf: Path, name: str, gif: Path, mp4: Path | None = None
+                       ) -> RenderResult:
+    """The drawing on the skin in 3-D, as a GIF and (given ``mp4``) an MP4
     (:func:`~tattotronix.report.render3d.render_drawing_3d`, at the 2-D animation's GIF
     rate: every frame rendered is kept): the arm as the simulated run moved it, the limb
-    in the panel's place, the ink growing on it where the simulated tip was in the skin."""
+    in the panel's place, the ink growing on it where the simulated tip was in the skin,
+    seen close, through a long lens (the design and the pen over it, not the whole arm)."""
     traj, sim = d.trajectory, run.loop.run
     scored = len(run.uvz_mm) > 0
     clip = drawing_clip(desc, urdf, name, traj.t, traj.q, traj.kind, traj.tcp, traj.marked,
@@ -263,4 +265,4 @@ def skin_drawing_video(d: SkinDrawing, run: SkinRun, desc: RobotDescription, urd
                         run_label=("the simulated run" if scored else
                                    "the simulated run (its ink not scored: the "
                                    "reference's shown)"), fps=VIDEO_FPS)
-    return render_drawing_3d(clip, mjcf, gif, None, gif_every=1, skin=skin_ink(d, run))
+    return render_drawing_3d(clip, mjcf, gif, mp4, gif_every=1, skin=skin_ink(d, run))
