@@ -11,6 +11,10 @@ A stage script is thin::
 
 * Run by hand (``python stages/robot.py robot.mass_model=box``), the config is Hydra's
   composition of ``conf/`` plus the overrides; ``-m`` sweeps work as in any Hydra app.
+  Where that composition is known to be ``params.yaml`` (the ``config`` gate checked
+  these bytes of ``conf/``) and every override sets a value of its key's type, the
+  settings are built from ``params.yaml`` directly, the same settings a second sooner
+  (:func:`~tattotronix.config.params.hand_settings`).
 * Run by DVC (``DVC_STAGE`` is set), the config is ``params.yaml`` plus any overrides in
   the command, after checking that ``params.yaml`` is not stale against ``conf/``. The
   provenance of its outputs then records only what DVC reruns it on: its params in
@@ -57,11 +61,11 @@ from omegaconf import DictConfig
 
 from tattotronix import end_import_guard
 from tattotronix.config.dvclock import guard as guard_lock
-from tattotronix.config.params import load_settings, one_line, to_settings
+from tattotronix.config.params import hand_settings, load_settings, one_line, to_settings
 from tattotronix.config.schema import Config
 from tattotronix.config.tracked import as_stage, stage_names, tracked_params
 from tattotronix.errors import ConfigError, Interrupted, TattotronixError
-from tattotronix.io.outputs import Outputs, write_root
+from tattotronix.io.outputs import Outputs, use_command_line, write_root
 from tattotronix.io.provenance import (
     fixed_code_version,
     plain_config,
@@ -103,6 +107,17 @@ def _setup_logging() -> None:
     if not logging.getLogger().handlers:
         logging.basicConfig(level=logging.INFO, format="[%(name)s] %(message)s")
     log.setLevel(logging.INFO)
+
+
+def _hand_logging() -> None:
+    """What ``conf/``'s ``hydra/job_logging: stdout`` sets up for a run Hydra starts: the
+    messages alone, on standard output, from INFO."""
+    root = logging.getLogger()
+    if not root.handlers:
+        handler = logging.StreamHandler(sys.stdout)
+        handler.setFormatter(logging.Formatter("%(message)s"))
+        root.addHandler(handler)
+    root.setLevel(logging.INFO)
 
 
 def exit_code(signum: int) -> int:
@@ -242,14 +257,23 @@ def _run(name: str, body: StageBody) -> None:
             _execute(name, body, settings)
         return
 
-    import hydra
-
     conf_dir = Path(sys.argv[0]).resolve().parent.parent / "conf"
     if not conf_dir.is_dir():
         from tattotronix.config.params import CONF_DIR
 
         conf_dir = CONF_DIR
 
+    # Hydra's composition gives what params.yaml already holds (the gate checked it):
+    # set the overrides on it, the exact way, and skip a second of every run
+    quick = hand_settings(argv, conf_dir.parent)
+    if quick is not None:
+        _hand_logging()
+        use_command_line(argv)
+        with fixed_code_version():
+            _execute(name, body, quick)
+        return
+
+    import hydra
     from hydra.errors import HydraException, OverrideParseException
     from omegaconf.errors import OmegaConfBaseException
 

@@ -1,8 +1,8 @@
 """The exact way to the settings (``schema.build_exact``) builds what OmegaConf's merge
 builds, or steps aside for it.
 
-Every DVC stage starts with :func:`load_settings`, and every study case with
-:func:`with_overrides`; both take the exact way when they can (milliseconds) and OmegaConf's
+Every DVC stage starts with :func:`load_settings`, every study case with
+:func:`with_overrides`, and a stage run by hand with :func:`hand_settings`; all take the exact way when they can (milliseconds) and OmegaConf's
 otherwise (a second). These tests hold the two equal, type for type, on every stage
 command of ``dvc.yaml`` and every study case of ``conf/``, and check that what the exact
 way does not take (a value OmegaConf converts, a bad key, a bad value) gets the same
@@ -21,6 +21,8 @@ from omegaconf import OmegaConf
 
 from tattotronix.config.params import (
     _compose_params,
+    compose_settings,
+    hand_settings,
     load_settings,
     to_settings,
     with_overrides,
@@ -166,3 +168,54 @@ def test_a_stage_reads_params_yaml_as_omegaconf_does(tmp_path: Path,
     (tmp_path / "params.yaml").write_text(text.replace("  wn: 160.0\n", "  wn: 16e1\n", 1))
     fast = load_settings(["paths.data=x"], tmp_path)
     assert fast.controller.wn == 160.0 and isinstance(fast.controller.wn, float)
+
+
+#: command lines of runs by hand: the README's, the tests' (and the DVC stages', above)
+HAND_RUNS = [
+    [], ["artwork.source=emblem"], ["mask.width_mm=60.0", "paths.out=/tmp/x"],
+    ["backend=pybullet", "draw.progress=false"], ["artwork.source=lineart", "mask.res_mm=0.1",
+                                                  "toolpath.compensate=true"],
+    ["controller.structure=pid", "controller.wn=120.0"], ["artwork.name=my-logo"],
+    ["paths.data=/tmp/somewhere", "dry_run=true"], ["surface.kind=forearm"],
+    ["controller.wn=120"],  # an int for a float: 120.0 both ways
+]
+
+
+@pytest.mark.parametrize("argv", HAND_RUNS)
+def test_a_run_by_hand_gets_the_settings_hydra_composes(argv: list[str]) -> None:
+    """Where :func:`hand_settings` builds the settings itself, they are Hydra's
+    composition of conf/ with the same command line, type for type."""
+    fast = hand_settings(argv, ROOT)
+    assert fast is not None, argv
+    slow = compose_settings(argv)
+    assert fast == slow and _typed(fast) == _typed(slow), argv
+
+
+@pytest.mark.parametrize("argv", [
+    ["-m", "controller.wn=100.0,120.0"], ["--cfg", "job"], ["surface=forearm"],
+    ["hydra.verbose=true"], ["hydra/launcher=basic"], ["+toolpath.extra=1"],
+    ["controller.wn='120'"],  # a string to convert
+    ["controller.nothing=1"], ["controller.wn=-5"], ["controller.wn=abc"],
+])
+def test_what_a_run_by_hand_leaves_to_hydra(argv: list[str]) -> None:
+    """A flag, a group's choice, a hydra key, an append, a string to convert and anything
+    Hydra would refuse go Hydra's way (its composition, its words)."""
+    assert hand_settings(argv, ROOT) is None
+
+
+def test_a_run_by_hand_composes_when_conf_moved(tmp_path: Path) -> None:
+    """A params.yaml the gate did not check against these bytes of conf/ (conf/ edited,
+    params.yaml not yet recomposed) leaves the settings to Hydra's composition of conf/."""
+    import shutil
+
+    for name in ("conf",):
+        shutil.copytree(ROOT / name, tmp_path / name)
+    for name in ("params.yaml",):
+        shutil.copy2(ROOT / name, tmp_path / name)
+    (tmp_path / "data").mkdir()
+    gate = ROOT / "data" / "config.hash"
+    shutil.copy2(gate, tmp_path / "data" / "config.hash")
+    assert hand_settings([], tmp_path) is not None  # the same bytes: the gate holds
+    ctl = tmp_path / "conf" / "controller" / "default.yaml"
+    ctl.write_text(ctl.read_text() + "wn: 120.0\n")
+    assert hand_settings([], tmp_path) is None

@@ -39,9 +39,14 @@ def test_a_notebooks_outputs_read_the_pipeline_and_write_beside_it(
         monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv("DVC_STAGE", raising=False)
     monkeypatch.chdir(PROJECT_ROOT)
+    # a hand-runs folder no run wrote (the checkout's own runs/ may hold a robot a user
+    # made by hand, which a notebook would rightly read first)
+    fresh = f"{HAND_RUNS}-{os.getpid()}-never-written"
+    monkeypatch.setattr("tattotronix.io.outputs.HAND_RUNS", fresh)
     out = Outputs(PIPELINE_DATA)
     assert out.by_hand and out.input("robot") == Path(PIPELINE_DATA, "robot")
-    assert out.path("metrics", "x.json") == Path(HAND_RUNS, "metrics", "x.json")
+    assert out.path("metrics", "x.json") == Path(fresh, "metrics", "x.json")
+    assert not (PROJECT_ROOT / fresh).exists()
 
 
 def _tree(folder: Path) -> dict[str, str]:

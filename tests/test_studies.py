@@ -16,7 +16,7 @@ import pytest
 import yaml
 from omegaconf import DictConfig, OmegaConf
 
-from tattotronix.config.params import compose, compose_settings
+from tattotronix.config.params import compose, compose_settings, with_overrides
 from tattotronix.config.schema import Config
 from tattotronix.errors import ConfigError, TattotronixError
 from tattotronix.io.outputs import Outputs
@@ -63,23 +63,31 @@ def _compose(overrides: Sequence[str] = ()) -> DictConfig:
 
 def test_case_names_match_the_configured_names() -> None:
     """A study's stage names each case's files from the swept keys; conf/study names the
-    cases: the two agree for every configured case (else the stage refuses to run)."""
+    cases: the two agree for every configured case (else the stage refuses to run). Each
+    case's settings are made as the stage makes them (:func:`with_overrides` on the
+    stage's own); a run by hand composes them with Hydra, which the test below does for
+    each study's first and last case (a composition takes a second)."""
+    base = compose_settings()
     params = yaml.safe_load((ROOT / "params.yaml").read_text())["study"]
-    for key, case in params["control"]["cases"].items():
-        cfg = _compose([f"controller.structure={case['structure']}",
-                       f"controller.wn={case['wn']}"])
+
+    def case(*overrides: str) -> Config:
+        return with_overrides(base, overrides)
+
+    for key, c in params["control"]["cases"].items():
+        cfg = case(f"controller.structure={c['structure']}", f"controller.wn={c['wn']}")
         assert STUDIES["control"].case_name(cfg) == key
     for v in params["approach_mm"]:
-        assert STUDIES["approach"].case_name(_compose([f"toolpath.approach_mm={v}"])) == f"{v}mm"
+        assert STUDIES["approach"].case_name(case(f"toolpath.approach_mm={v}")) == f"{v}mm"
     for v in params["step_mm"]:
-        assert STUDIES["resample"].case_name(_compose([f"toolpath.step_mm={v}"])) == f"{v}mm"
+        assert STUDIES["resample"].case_name(case(f"toolpath.step_mm={v}")) == f"{v}mm"
     for r in params["rate_hz"]:
         for w in params["rate_wn"]:
-            cfg = _compose([f"controller.rate_hz={r}", f"controller.wn={w}"])
+            cfg = case(f"controller.rate_hz={r}", f"controller.wn={w}")
             assert STUDIES["rate"].case_name(cfg) == f"{r}hz-wn{w}"
     for name, study in STUDIES.items():
-        cases = study.cases(_compose().study)
-        assert all(study.case_name(_compose(o)) == c for c, o in cases.items()), name
+        cases = study.cases(base.study)
+        assert cases, name
+        assert all(study.case_name(case(*o)) == c for c, o in cases.items()), name
 
 
 def test_every_study_names_its_configured_cases_and_has_its_stages() -> None:

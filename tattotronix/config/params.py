@@ -39,6 +39,7 @@ __all__ = [
     "compose",
     "compose_settings",
     "diff",
+    "hand_settings",
     "load_params",
     "load_settings",
     "main",
@@ -379,6 +380,28 @@ def load_settings(overrides: Sequence[str] = (), root: Path = PROJECT_ROOT) -> C
         exact = None
     return _checked(exact) if exact is not None else to_settings(
         _compose_params(overrides, root))
+
+
+def hand_settings(overrides: Sequence[str], root: Path) -> Config | None:
+    """The settings of a stage run by hand, without Hydra's composition of ``conf/`` (a
+    second of every run), when that composition is known to give them: ``params.yaml``
+    plus ``overrides``, built exactly (:func:`load_settings`' way), where the ``config``
+    gate has checked that ``params.yaml`` is the composition of these very bytes of
+    ``conf/`` and every override sets a value of the type its key has. None otherwise
+    (a flag such as ``-m`` or ``--cfg``, a group's choice such as ``surface=forearm``, a
+    ``hydra.`` key, an append or delete, a value to convert, a bad key or value, a
+    ``params.yaml`` behind ``conf/``): Hydra composes, and refuses with its own words.
+    ``tests/test_exact_settings.py`` holds the two ways equal.
+    """
+    if any(a.startswith("-") or a.partition("=")[0].lstrip("+~").split(".")[0] == "hydra"
+           or (root / "conf" / a.partition("=")[0]).is_dir() for a in overrides):
+        return None
+    if not _gate_passed(root):
+        return None
+    try:
+        return _checked(build_exact(Config, _params_with(overrides, root)))
+    except (NotExact, ConfigError):
+        return None
 
 
 def _params_with(overrides: Sequence[str], root: Path) -> dict[str, Plain]:

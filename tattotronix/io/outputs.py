@@ -341,9 +341,22 @@ class Outputs:
         self.commit()
 
 
+#: The command line's overrides of a stage run by hand whose settings Hydra did not
+#: compose (:func:`tattotronix.config.params.hand_settings`), set by the stage runner.
+_command_line: list[str] | None = None
+
+
+def use_command_line(overrides: Sequence[str]) -> None:
+    """Record a stage run's own overrides (a run by hand without Hydra's composition):
+    what :meth:`Outputs.rerun_command` repeats."""
+    global _command_line
+    _command_line = list(overrides)
+
+
 def _run_overrides() -> list[str]:
     """This run's command-line overrides: Hydra's (a run by hand, a sweep job's own), else
-    the command line's inside a DVC stage; none in a notebook."""
+    the command line's inside a DVC stage or a run by hand Hydra did not compose; none in
+    a notebook."""
     try:
         from hydra.core.hydra_config import HydraConfig
 
@@ -351,6 +364,8 @@ def _run_overrides() -> list[str]:
             return [str(o) for o in HydraConfig.get().overrides.task]
     except (ImportError, ValueError):  # pragma: no cover - hydra is a dependency
         pass
+    if _command_line is not None:
+        return list(_command_line)
     if os.environ.get("DVC_STAGE"):
         return [a for a in sys.argv[1:] if "=" in a]
     return []
