@@ -200,7 +200,10 @@ def test_the_ink_grows_on_a_limb_in_the_panels_place(gl: str, clip: DrawingClip,
     down = clip.tip_m[tips[:, 2] < 0]
     centre = scene.camera.project(down.mean(axis=0)[None], float(m.vis.global_.fovy),
                                   size)[0]
-    assert abs(cols.mean() - centre[0]) < 4 and abs(rows.mean() - centre[1]) < 4
+    # where the tips are, to a tenth of the ink's own size on the frame (the skin's film
+    # frames the design close up: a pixel is less than on the panel's)
+    tol = 0.1 * np.array([np.ptp(cols), np.ptp(rows)]) + 2.0
+    assert abs(cols.mean() - centre[0]) < tol[0] and abs(rows.mean() - centre[1]) < tol[1]
 
 
 def test_the_3d_video_has_the_clip_s_frames(gl: str, tiny_clip: Callable[..., DrawingClip],
