@@ -2,11 +2,13 @@
 builds, or steps aside for it.
 
 Every DVC stage starts with :func:`load_settings`, every study case with
-:func:`with_overrides`, and a stage run by hand with :func:`hand_settings`; all take the exact way when they can (milliseconds) and OmegaConf's
-otherwise (a second). These tests hold the two equal, type for type, on every stage
-command of ``dvc.yaml`` and every study case of ``conf/``, and check that what the exact
-way does not take (a value OmegaConf converts, a bad key, a bad value) gets the same
-settings or the same refusal as before.
+:func:`with_overrides`, and a stage run by hand with :func:`hand_settings`; all take the
+exact way when they can (milliseconds) and Hydra's and OmegaConf's otherwise (a second).
+These tests hold the ways equal, type for type, on every stage command of ``dvc.yaml``,
+every study case of ``conf/`` and the runs by hand of the README and the tests, and check
+that what the exact way does not take (a value OmegaConf converts, a bad key, a bad
+value, a flag or a group's choice by hand) gets the same settings or the same refusal as
+before.
 """
 
 from __future__ import annotations
