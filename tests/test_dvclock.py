@@ -91,16 +91,17 @@ def _env(clone: Path) -> dict[str, str]:
     return env
 
 
-def _interrupt_while_locking(clone: Path) -> bool:
+def _interrupt_while_locking(clone: Path, out: Path) -> bool:
     """``dvc repro -f -s mass``, with SIGINT sent to its process group (as a terminal's
     Ctrl-C is) the moment DVC starts rewriting dvc.lock after the stage; whether the
-    signal was sent while DVC ran."""
+    signal was sent while DVC ran. DVC's output goes to ``out``, with its exit code."""
     lock = clone / "dvc.lock"
     before = lock.stat()
-    proc = subprocess.Popen([PYTHON, "-m", "dvc", "repro", "-f", "-s", "mass"], cwd=clone,
-                            env=_env(clone), stdout=subprocess.DEVNULL,
-                            stderr=subprocess.DEVNULL, start_new_session=True,
-                            preexec_fn=default_signals)
+    with out.open("w") as log:
+        proc = subprocess.Popen([PYTHON, "-m", "dvc", "repro", "-f", "-s", "mass"],
+                                cwd=clone, env=_env(clone), stdout=log,
+                                stderr=subprocess.STDOUT, start_new_session=True,
+                                preexec_fn=default_signals)
     sent = False
     deadline = time.monotonic() + 120
     while proc.poll() is None and time.monotonic() < deadline:
@@ -109,7 +110,10 @@ def _interrupt_while_locking(clone: Path) -> bool:
             os.killpg(proc.pid, signal.SIGINT)  # DVC has opened it to rewrite it
             sent = True
             break
-    proc.wait(timeout=120)
+    code = proc.wait(timeout=120)
+    with out.open("a") as log:
+        log.write(f"\n[exit code {code}; lock {before.st_size} -> {lock.stat().st_size} "
+                  "bytes]\n")
     return sent
 
 
@@ -134,8 +138,10 @@ def test_ctrl_c_while_dvc_writes_the_lock_leaves_it_whole_or_refused(tmp_path: P
     for _ in range(20):
         # on a busy machine DVC may rewrite the lock and exit between two looks: that
         # run ended whole and is tried again (at most 5 times) to land the signal
-        assert any(_interrupt_while_locking(clone) for _ in range(5)), (
-            "DVC never rewrote dvc.lock while it was watched")
+        out = tmp_path / "dvc.out"
+        assert any(_interrupt_while_locking(clone, out) for _ in range(5)), (
+            "DVC never rewrote dvc.lock while it was watched; the last try's output:\n"
+            + out.read_text()[-3000:])
         check = subprocess.run([PYTHON, "-m", "tattotronix.config.dvclock", "--check"],
                                cwd=clone, env=_env(clone), capture_output=True, text=True)
         if check.returncode == 0:
@@ -152,6 +158,11 @@ def test_ctrl_c_while_dvc_writes_the_lock_leaves_it_whole_or_refused(tmp_path: P
                                cwd=clone, env=_env(clone), capture_output=True, text=True)
         assert fixed.returncode == 0, fixed.stderr
         assert set(yaml.safe_load((clone / "dvc.lock").read_text())["stages"]) == stages
+        # DVC removed the outputs of the stage it refused to run (config's stamps, not
+        # cached): the next repro, as the restore says, remakes them
+        assert "dvc repro" in fixed.stdout, fixed.stdout
+        mended = _dvc(clone, "repro")
+        assert mended.returncode == 0, mended.stdout[-2000:] + mended.stderr[-2000:]
         outcomes["refused"] += 1
     assert sum(outcomes.values()) == 20, outcomes
     # mended every time: the pipeline is whole and DVC reads it

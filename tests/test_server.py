@@ -20,6 +20,7 @@ from PIL import Image, ImageDraw
 from starlette.websockets import WebSocketDisconnect
 
 from tattotronix.errors import TattotronixError
+from tattotronix.hardware.arm import TEST_HOOK_ENV
 from tattotronix.server.auth import is_loopback, load_or_make_token
 from tattotronix.server.plans import sniff_kind
 from tattotronix.server.web import create_app
@@ -277,7 +278,12 @@ def test_job_actions_without_a_job(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_a_job_pauses_with_the_needle_up_resumes_and_stops(tmp_path: Path, art: bytes) -> None:
+def test_a_job_pauses_with_the_needle_up_resumes_and_stops(tmp_path: Path, art: bytes,
+                                                           monkeypatch: pytest.MonkeyPatch
+                                                           ) -> None:
+    # each session of the job waits at its 200th frame of drawing until it is stopped, so
+    # a pause is never late for it however busy the machine (the job is 24 s long)
+    monkeypatch.setenv(TEST_HOOK_ENV, "draw:200:wait")
     c = _client(tmp_path)
     pid = _plan(c, art)["id"]
     r = c.post("/api/jobs", json={"plan": pid, "real": True})
@@ -307,6 +313,7 @@ def test_a_job_pauses_with_the_needle_up_resumes_and_stops(tmp_path: Path, art: 
     st = _wait(c, lambda s: s["status"] == "stopped")
     assert st["arm_status"] == "paused" and st["tip_mm"][2] > 1.0
     assert c.post("/api/jobs/current/resume").status_code == 409  # a stopped job is over
+    monkeypatch.delenv(TEST_HOOK_ENV)
     r = c.post("/api/jobs", json={"plan": pid, "realtime": False})
     assert r.status_code == 201  # a new job may start
     st = _wait(c, lambda s: s["status"] in ("done", "failed"))

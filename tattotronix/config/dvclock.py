@@ -134,7 +134,8 @@ def restore(root: Path) -> str:
     tmp = lock.with_name(f".{lock.name}.tmp{os.getpid()}")
     tmp.write_bytes(backup.read_bytes())
     os.replace(tmp, lock)
-    return f"restored {lock} from {backup}"
+    return (f"restored {lock} from {backup}; `dvc repro` remakes any output a refused run "
+            "removed")
 
 
 def main(argv: list[str] | None = None) -> int:
