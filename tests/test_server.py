@@ -326,7 +326,7 @@ def _crash_mid_job(tmp_path: Path, art: bytes,
     """Start a job, wait ``until`` its state says so, kill its runner (SIGKILL: it dies
     with the server, a power cut), and restart the server on its folder."""
     c = _client(tmp_path)
-    pid = _plan(c, art)["id"]
+    pid = _plan(c, art, width_mm="12")["id"]  # an 8 s drawing: the resume paces the rest
     assert c.post("/api/jobs", json={"plan": pid}).status_code == 201
     st = _wait(c, until)
     doc = json.loads((tmp_path / "jobs" / st["id"] / "job.json").read_text())
@@ -472,7 +472,7 @@ def test_a_server_killed_mid_job_restarts_and_the_job_resumes_to_the_end(
     try:
         _get(port, "/api/health")
         pid = _call(port, "POST", "/api/plans/strokes",
-                    {"strokes": [[[-20, -10], [20, -10], [20, 10]], [[-30, 15], [-10, 25]]]}
+                    {"strokes": [[[-10, -5], [10, -5], [10, 5]], [[-15, 8], [-5, 12]]]}
                     )["id"]
         job = _call(port, "POST", "/api/jobs", {"plan": pid})
         end = time.monotonic() + 120
