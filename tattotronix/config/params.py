@@ -374,12 +374,8 @@ def load_settings(overrides: Sequence[str] = (), root: Path = PROJECT_ROOT) -> C
         msg = stale_message(root)
         if msg:
             raise StaleParamsError(msg)
-    try:
-        exact: Config | None = build_exact(Config, _params_with(overrides, root))
-    except NotExact:
-        exact = None
-    return _checked(exact) if exact is not None else to_settings(
-        _compose_params(overrides, root))
+    exact = _exact_settings(overrides, root)
+    return exact if exact is not None else to_settings(_compose_params(overrides, root))
 
 
 def hand_settings(overrides: Sequence[str], root: Path) -> Config | None:
@@ -399,9 +395,23 @@ def hand_settings(overrides: Sequence[str], root: Path) -> Config | None:
     if not _gate_passed(root):
         return None
     try:
-        return _checked(build_exact(Config, _params_with(overrides, root)))
-    except (NotExact, ConfigError):
+        return _exact_settings(overrides, root)
+    except ConfigError:
         return None
+
+
+def _exact_settings(overrides: Sequence[str], root: Path) -> Config | None:
+    """``params.yaml`` plus ``overrides`` built exactly and checked; None where they
+    cannot be built so (:class:`NotExact`: Hydra's and OmegaConf's way is then needed).
+
+    Raises:
+        ConfigError: a value out of its range.
+    """
+    try:
+        exact = build_exact(Config, _params_with(overrides, root))
+    except NotExact:
+        return None
+    return _checked(exact)
 
 
 def _params_with(overrides: Sequence[str], root: Path) -> dict[str, Plain]:

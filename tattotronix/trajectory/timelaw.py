@@ -53,7 +53,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -663,6 +663,14 @@ class _Stretch:
     repairs: int = 0
     stepped: int = 0
     since_widen: int = 0
+    # set from the fields above: the steps of ``s``, the current law (``_law_of``), the
+    # law the caps started from, and each point's count of repairs
+    h: Array = field(init=False)
+    t: Array = field(init=False)
+    sdot: Array = field(init=False)
+    u: Array = field(init=False)
+    base: tuple[Array, Array, Array, Array] = field(init=False)
+    strikes: NDArray[np.int64] = field(init=False)
 
     def __post_init__(self) -> None:
         self.h = np.diff(self.s)
