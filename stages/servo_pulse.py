@@ -45,11 +45,15 @@ def recorder(path: Path, joint: str, calib: Calibration) -> Callable[[float, flo
         points = data["joints"][joint].setdefault("points", [])
         points[:] = [p for p in points if float(p[0]) != round(width_us, 3)]
         points.append([round(width_us, 3), float(angle_deg)])
+        fit = None
         if len(points) > 1:  # a fit needs two; the file is checked whole before it is kept
-            Calib.from_mapping(data, calib.joint_names, source=str(path))
+            fit = Calib.from_mapping(data, calib.joint_names, source=str(path)).joint(joint).a.fit
         tmp = path.with_suffix(path.suffix + ".tmp")
         tmp.write_text(yaml.safe_dump(data, sort_keys=False))
         tmp.replace(path)
+        if fit is not None:
+            print(f"{joint}: {len(points)} widths measured; the order-{fit.order} fit passes "
+                  f"within {fit.residual_deg():.2f} deg of their angles", flush=True)
 
     return record
 

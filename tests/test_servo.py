@@ -415,3 +415,13 @@ def test_each_correction_halves_its_own_error(desc: RobotDescription, emblem: Dr
         mean[on] = float(np.mean(err.error_m[err.down])) * 1e6  # marking_mean_um
     assert mean[False] > 100.0  # the imperfection alone costs a tenth of a millimetre
     assert mean[True] <= 0.5 * mean[False]
+
+
+def test_the_simulated_calibration_fits_as_a_calibration_file_does() -> None:
+    """``servo.fit_order`` (the servo plant's calibration) is a calibration file's default
+    order (``hardware.servos.DEFAULT_FIT_ORDER``: ``config`` sits below ``hardware`` and
+    cannot import it)."""
+    from tattotronix.config.schema import ServoPlantConfig
+    from tattotronix.hardware.servos import DEFAULT_FIT_ORDER
+
+    assert ServoPlantConfig().fit_order == DEFAULT_FIT_ORDER

@@ -888,7 +888,7 @@ class ServoPlantConfig:
     lag: bool = True  # frame hold, latency, stall torque and speed limit (false: stiff, exact)
     # the simulated calibration (servo_pulse's procedure): widths measured per servo
     fit_points: int = bounded(9, lo=2, hi=200)
-    fit_order: int = bounded(3, lo=1, hi=7)
+    fit_order: int = bounded(5, lo=1, hi=7)  # hardware.servos.DEFAULT_FIT_ORDER's
     protractor_deg: float = bounded(0.5, lo=0, hi=10, unit="deg")  # reading resolution
     # the stiff loop of lag=false, rad/s
     ideal_wn: float = bounded(300.0, lo=1, lo_open=False, hi=10_000, unit="rad/s")
