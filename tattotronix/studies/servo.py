@@ -10,7 +10,8 @@ would compile it. The cases (``study.servo.cases``) sweep:
   band, sag, lead) one at a time and all together;
 * the speed, for the cycle time it costs;
 * each imperfection of the as-mounted servos alone (``only``), which splits the error by
-  its source: quantisation, dead band, backlash, the pulse map's bend, lag.
+  its source: quantisation, dead band, backlash, the pulse map's bend, lag; and each alone
+  with every correction (``built-only-<part>-all``): what the corrections leave of it.
 
 Each case reports, over the whole drawing: the worst ink deviation (the symmetric
 Hausdorff distance of the simulated ink from the planned ink, mm), the mean and worst tip
@@ -155,13 +156,17 @@ class ServoStudy(ClosedLoopStudy):
         ax.set_xlabel("mm over the whole drawing (labels: cycle time, line width)")
         ax.legend(loc="lower right", fontsize=8)
         ax.grid(True, axis="x", alpha=0.3)
-        only = {n.split("-only-")[1]: c for n, c in cases.items() if "-only-" in n}
+        only, fixed = _alone(cases)
         names = [k for k in IMPERFECTIONS if k in only]
         y = np.arange(len(names))
         worst = [only[k].number("whole", "ink_max_dev_mm") for k in names]
         mean = [only[k].number("whole", "marking_mean_um") / 1e3 for k in names]
-        src.barh(y - 0.2, worst, 0.4, color="#c0392b", label="worst ink deviation")
-        src.barh(y + 0.2, mean, 0.4, color="#3b6fb6", label="mean marking deviation")
+        src.barh(y - 0.27, worst, 0.27, color="#c0392b", label="worst ink deviation")
+        src.barh(y, mean, 0.27, color="#3b6fb6", label="mean marking deviation")
+        left = [fixed[k].number("whole", "marking_mean_um") / 1e3 if k in fixed else math.nan
+                for k in names]
+        src.barh(y + 0.27, left, 0.27, color="#2f9e44",
+                 label="mean, with every correction")
         _tolerance(src, list(only.items()))
         src.set_yticks(y, [_SOURCE_LABEL[k] for k in names])
         src.invert_yaxis()
@@ -184,7 +189,23 @@ class ServoStudy(ClosedLoopStudy):
                     gains[rest] = {
                         "mean_mm": _diff(base["mean_mm"], row["mean_mm"]),
                         "worst_mm": _diff(base["worst_mm"], row["worst_mm"])}
-        return {"cases": table, "compensation_gain_mm": gains}
+        _, fixed = _alone(cases)
+        left = {k: {"mean_mm": table[f"{_BASE}-only-{k}-all"]["mean_mm"],
+                    "worst_mm": table[f"{_BASE}-only-{k}-all"]["worst_mm"]}
+                for k in IMPERFECTIONS if k in fixed}
+        return {"cases": table, "compensation_gain_mm": gains,
+                "left_by_imperfection_mm": left}
+
+
+def _alone(cases: Cases) -> tuple[Cases, Cases]:
+    """The cases of each imperfection alone on the as-mounted servos (``built-only-<k>``)
+    and of each alone with every correction (``built-only-<k>-all``), by imperfection."""
+    alone = {n.split("-only-")[1]: c for n, c in cases.items()
+             if n.startswith(f"{_BASE}-only-") and n.split("-only-")[1] in IMPERFECTIONS}
+    fixed = {n.split("-only-")[1][:-len("-all")]: c for n, c in cases.items()
+             if n.startswith(f"{_BASE}-only-") and n.endswith("-all")
+             and n.split("-only-")[1][:-len("-all")] in IMPERFECTIONS}
+    return alone, fixed
 
 
 _SOURCE_LABEL = {"quantise": "quantisation\n(PCA9685 counts)", "deadband": "dead band",
