@@ -167,6 +167,11 @@ class ServoStudy(ClosedLoopStudy):
                 for k in names]
         src.barh(y + 0.27, left, 0.27, color="#2f9e44",
                  label="mean, with every correction")
+        for k, v in enumerate(left):
+            if math.isfinite(v):
+                src.annotate(f"{v:.3f} mm" if v < 0.01 else f"{v:.2f} mm", (v, k + 0.27),
+                             textcoords="offset points", xytext=(4, -3), fontsize=7.5,
+                             color="#2f9e44")
         _tolerance(src, list(only.items()))
         src.set_yticks(y, [_SOURCE_LABEL[k] for k in names])
         src.invert_yaxis()
