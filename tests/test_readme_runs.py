@@ -38,6 +38,30 @@ def test_servo_pulse_holds_the_widths_typed_and_ends_off() -> None:
     assert writes[-1]["reg"] == 0xFA and writes[-1]["data"][3] & 0x10  # then all off
 
 
+def test_servo_pulse_records_the_angles_read_and_says_how_well_they_fit(
+        tmp_path: Path) -> None:
+    """``... joint=joint_1 record=FILE``: each width typed with the angle read at the one
+    held adds a pair to FILE, and from the second on the command says how far the fit
+    passes from them."""
+    import yaml
+
+    file = tmp_path / "calibration.yaml"
+    r = subprocess.run([PYTHON, "stages/servo_pulse.py", "channel=0", "width_us=1500",
+                        "dry_run=true", "joint=joint_1", f"record={file}"], cwd=ROOT,
+                       env=stage_env(), input="1600 0.2\n1700 9.3\n1800 18.1\n\n",
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    points = yaml.safe_load(file.read_text())["joints"]["joint_1"]["points"]
+    # each width as sent, the nearest count (4.88 us at 50 Hz), with the angle read there
+    assert [a for _, a in points] == [0.2, 9.3, 18.1]
+    assert all(abs(w - want) < 4.9 for (w, _), want in zip(points, (1500, 1600, 1700),
+                                                             strict=True))
+    said = [line for line in r.stdout.splitlines() if line.startswith("joint_1:")]
+    assert said == [
+        "joint_1: 2 widths measured; the order-1 fit passes within 0.00 deg of their angles",
+        "joint_1: 3 widths measured; the order-2 fit passes within 0.00 deg of their angles"]
+
+
 @pytest.mark.cad
 def test_the_cad_commands_run_on_the_meshes(cad_dir: Path, tmp_path: Path) -> None:
     """``python stages/robot.py robot.cad_dir=DIR`` and ``python stages/mass.py
