@@ -284,6 +284,17 @@ def test_a_job_pauses_with_the_needle_up_resumes_and_stops(tmp_path: Path, art: 
     # each session of the job waits at its 200th frame of drawing until it is stopped, so
     # a pause is never late for it however busy the machine (the job is 24 s long)
     monkeypatch.setenv(TEST_HOOK_ENV, "draw:200:wait")
+    # the server's process ignores SIGINT, as one a script starts in the background does:
+    # its jobs' processes must still hear the pause
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        _pause_resume_and_stop(tmp_path, art, monkeypatch)
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def _pause_resume_and_stop(tmp_path: Path, art: bytes, monkeypatch: pytest.MonkeyPatch
+                           ) -> None:
     c = _client(tmp_path)
     pid = _plan(c, art)["id"]
     r = c.post("/api/jobs", json={"plan": pid, "real": True})
