@@ -138,10 +138,11 @@ def main(argv: list[str] | None = None) -> int:
         print("usage: python -m tattotronix.server.runner JOB_FOLDER", file=sys.stderr)
         return 2
     folder = Path(args[0])
-    # the server pauses this process with SIGINT and stops it with SIGTERM; a server
-    # started where SIGINT is ignored (a script's background job: the shell ignores it
-    # there) would pass that on, and a pause would go unheard while the arm drew on. Both
-    # get their defaults back; the arm's session takes them over (hardware.arm)
+    # the server pauses this process with SIGINT and stops it with SIGTERM; a server whose
+    # process ignores SIGINT (started in a script's background, where the shell ignores it,
+    # and not under uvicorn's own handlers: embedded, or in a thread) passes that on, and
+    # a pause would go unheard while the arm drew on. Both get their defaults back; the
+    # arm's session takes them over (hardware.arm)
     signal.signal(signal.SIGINT, signal.default_int_handler)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
     logging.basicConfig(filename=folder / LOG_FILE, level=logging.INFO,
