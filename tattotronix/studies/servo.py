@@ -194,10 +194,8 @@ class ServoStudy(ClosedLoopStudy):
                     gains[rest] = {
                         "mean_mm": _diff(base["mean_mm"], row["mean_mm"]),
                         "worst_mm": _diff(base["worst_mm"], row["worst_mm"])}
-        _, fixed = _alone(cases)
-        left = {k: {"mean_mm": table[f"{_BASE}-only-{k}-all"]["mean_mm"],
-                    "worst_mm": table[f"{_BASE}-only-{k}-all"]["worst_mm"]}
-                for k in IMPERFECTIONS if k in fixed}
+        left = {k: {"mean_mm": _row(c)["mean_mm"], "worst_mm": _row(c)["worst_mm"]}
+                for k, c in _alone(cases)[1].items()}
         return {"cases": table, "compensation_gain_mm": gains,
                 "left_by_imperfection_mm": left}
 
@@ -205,11 +203,10 @@ class ServoStudy(ClosedLoopStudy):
 def _alone(cases: Cases) -> tuple[Cases, Cases]:
     """The cases of each imperfection alone on the as-mounted servos (``built-only-<k>``)
     and of each alone with every correction (``built-only-<k>-all``), by imperfection."""
-    alone = {n.split("-only-")[1]: c for n, c in cases.items()
-             if n.startswith(f"{_BASE}-only-") and n.split("-only-")[1] in IMPERFECTIONS}
-    fixed = {n.split("-only-")[1][:-len("-all")]: c for n, c in cases.items()
-             if n.startswith(f"{_BASE}-only-") and n.endswith("-all")
-             and n.split("-only-")[1][:-len("-all")] in IMPERFECTIONS}
+    alone = {k: cases[f"{_BASE}-only-{k}"] for k in IMPERFECTIONS
+             if f"{_BASE}-only-{k}" in cases}
+    fixed = {k: cases[f"{_BASE}-only-{k}-all"] for k in IMPERFECTIONS
+             if f"{_BASE}-only-{k}-all" in cases}
     return alone, fixed
 
 
